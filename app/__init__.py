@@ -1,0 +1,1 @@
+"""StudioTrack application: Qt main window, engine-thread bridge, CLI and workflows."""

@@ -1,0 +1,1 @@
+"""StudioTrack engine: tracking, sources, evaluation and outputs. Imports no Qt."""

@@ -1,0 +1,232 @@
+"""Rigid-body geometry as short pure functions.
+
+Conventions (carried in the names):
+- ``T_a_b`` is a 4x4 homogeneous transform mapping points in frame *b* into frame *a*
+  (``p_a = T_a_b @ p_b``); ``T_world_cam`` is therefore the camera pose in the world.
+- Twists are ``xi = (v, w)``: translational part first, rotational part second (3+3).
+- Quaternions are ``quat_xyzw`` (scalar last), as in TUM trajectory files.
+- Camera frames are OpenCV's: x right, y down, z forward (optical axis).
+
+The SE(3) exponential and logarithm follow the closed forms (e.g. Tykkälä 2014 eq. (5)
+uses this parameterisation) with Taylor expansions near zero angle so that they stay
+accurate for the tiny increments Gauss-Newton produces.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+
+_SMALL_ANGLE = 1e-4
+
+
+def hat(w: F64) -> F64:
+    """Skew-symmetric matrix [w]x so that hat(w) @ p == cross(w, p)."""
+    return np.array(
+        [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]], dtype=np.float64
+    )
+
+
+def vee(W: F64) -> F64:
+    """Inverse of :func:`hat`."""
+    return np.array([W[2, 1], W[0, 2], W[1, 0]], dtype=np.float64)
+
+
+def _so3_coeffs(theta: float) -> tuple[float, float, float]:
+    """A = sin(t)/t, B = (1-cos t)/t^2, C = (1 - A)/t^2 with series near 0."""
+    if theta < _SMALL_ANGLE:
+        t2 = theta * theta
+        a = 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+        b = 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+        c = 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
+        return a, b, c
+    a = np.sin(theta) / theta
+    b = (1.0 - np.cos(theta)) / (theta * theta)
+    c = (1.0 - a) / (theta * theta)
+    return float(a), float(b), float(c)
+
+
+def so3_exp(w: F64) -> F64:
+    """Rodrigues' formula R = I + A[w]x + B[w]x^2, stable at small angles."""
+    w = np.asarray(w, dtype=np.float64)
+    theta = float(np.linalg.norm(w))
+    a, b, _ = _so3_coeffs(theta)
+    W = hat(w)
+    return np.eye(3) + a * W + b * (W @ W)
+
+
+def so3_log(R: F64) -> F64:
+    """Rotation vector of R, stable near 0 and near pi."""
+    R = np.asarray(R, dtype=np.float64)
+    cos_t = np.clip((np.trace(R) - 1.0) * 0.5, -1.0, 1.0)
+    theta = float(np.arccos(cos_t))
+    if theta < _SMALL_ANGLE:
+        # R ~ I + [w]x: first-order, corrected by the series of theta/sin(theta).
+        return vee(R - R.T) * 0.5 * (1.0 + theta * theta / 6.0)
+    if np.pi - theta < 1e-3:
+        # Near pi: use the symmetric part, R = I + 2 n n^T - ... => n n^T = (R + I) / 2.
+        M = (R + np.eye(3)) * 0.5
+        k = int(np.argmax(np.diag(M)))
+        n = M[:, k] / np.sqrt(max(M[k, k], 1e-15))
+        n /= np.linalg.norm(n)
+        # Fix the sign with the antisymmetric part.
+        s = vee(R - R.T)
+        if float(np.dot(s, n)) < 0.0:
+            n = -n
+        return n * theta
+    return vee(R - R.T) * (theta / (2.0 * np.sin(theta)))
+
+
+def se3_exp(xi: F64) -> F64:
+    """Exponential map of a twist xi = (v, w) to a 4x4 transform (closed form, eq. (5))."""
+    xi = np.asarray(xi, dtype=np.float64)
+    v, w = xi[:3], xi[3:]
+    theta = float(np.linalg.norm(w))
+    a, b, c = _so3_coeffs(theta)
+    W = hat(w)
+    W2 = W @ W
+    R = np.eye(3) + a * W + b * W2
+    V = np.eye(3) + b * W + c * W2
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = V @ v
+    return T
+
+
+def se3_log(T: F64) -> F64:
+    """Logarithm of a 4x4 transform to a twist (v, w)."""
+    T = np.asarray(T, dtype=np.float64)
+    w = so3_log(T[:3, :3])
+    theta = float(np.linalg.norm(w))
+    W = hat(w)
+    if theta < _SMALL_ANGLE:
+        V_inv = np.eye(3) - 0.5 * W + (W @ W) / 12.0
+    else:
+        a, b, _ = _so3_coeffs(theta)
+        V_inv = np.eye(3) - 0.5 * W + (1.0 / (theta * theta)) * (1.0 - a / (2.0 * b)) * (W @ W)
+    return np.concatenate([V_inv @ T[:3, 3], w])
+
+
+def make_T(R: F64, t: F64) -> F64:
+    """4x4 transform from rotation and translation."""
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = np.asarray(t, dtype=np.float64).reshape(3)
+    return T
+
+
+def invert(T: F64) -> F64:
+    """Inverse of a rigid transform without a general matrix inverse."""
+    R = T[:3, :3]
+    Ti = np.eye(4)
+    Ti[:3, :3] = R.T
+    Ti[:3, 3] = -R.T @ T[:3, 3]
+    return Ti
+
+
+def compose(*Ts: F64) -> F64:
+    """Product T1 @ T2 @ ... of rigid transforms."""
+    out = np.eye(4)
+    for T in Ts:
+        out = out @ T
+    return out
+
+
+def transform_points(T_a_b: F64, p_b: F64) -> F64:
+    """Apply T_a_b to an (N, 3) array of points in frame b."""
+    return p_b @ T_a_b[:3, :3].T + T_a_b[:3, 3]
+
+
+def quat_xyzw_from_R(R: F64) -> F64:
+    """Unit quaternion (x, y, z, w) with w >= 0 from a rotation matrix (Shepperd's method)."""
+    R = np.asarray(R, dtype=np.float64)
+    tr = np.trace(R)
+    if tr > 0.0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = np.array(
+            [(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, 0.25 * s]
+        )
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        q = np.array(
+            [0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s, (R[2, 1] - R[1, 2]) / s]
+        )
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        q = np.array(
+            [(R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s, (R[0, 2] - R[2, 0]) / s]
+        )
+    else:
+        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        q = np.array(
+            [(R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s, (R[1, 0] - R[0, 1]) / s]
+        )
+    q /= np.linalg.norm(q)
+    return -q if q[3] < 0.0 else q
+
+
+def R_from_quat_xyzw(q: F64) -> F64:
+    """Rotation matrix from a (not necessarily unit) quaternion (x, y, z, w)."""
+    q = np.asarray(q, dtype=np.float64)
+    n = np.linalg.norm(q)
+    if not np.isfinite(n) or n < 1e-12:
+        raise ValueError(f"quaternion {q.tolist()} has zero or non-finite norm")
+    x, y, z, w = q / n
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def T_from_tum(txyz_quat_xyzw: F64) -> F64:
+    """4x4 pose from a TUM row (tx, ty, tz, qx, qy, qz, qw)."""
+    row = np.asarray(txyz_quat_xyzw, dtype=np.float64)
+    return make_T(R_from_quat_xyzw(row[3:7]), row[:3])
+
+
+def tum_from_T(T: F64) -> F64:
+    """TUM row (tx, ty, tz, qx, qy, qz, qw) of a 4x4 pose."""
+    return np.concatenate([T[:3, 3], quat_xyzw_from_R(T[:3, :3])])
+
+
+def rotation_angle_rad(R: F64) -> float:
+    """Angle of a rotation matrix in radians, in [0, pi]."""
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) * 0.5, -1.0, 1.0)))
+
+
+def pan_tilt_roll_deg(R_world_cam: F64) -> tuple[float, float, float]:
+    """Pan, tilt, roll (degrees) of a camera orientation in a z-up world.
+
+    The world is right-handed with z up; at pan = tilt = roll = 0 the camera (OpenCV axes)
+    looks along world +y with its image x along world +x. Pan turns about world z
+    (positive to the left, counter-clockwise seen from above), tilt raises the optical axis
+    (positive up), roll turns about the optical axis (positive clockwise in the image).
+    R_world_cam = Rz(pan) @ Rx(tilt) @ Ry_view(roll) @ R_base.
+    """
+    R_base = _R_BASE_ZUP
+    M = R_world_cam @ R_base.T  # = Rz(pan) Rx(tilt) Ry(roll) in world axes
+    # M = Rz(p) Rx(t) Ry(r): M[2,1] = sin t, M[0,1] = -sin p cos t, M[1,1] = cos p cos t,
+    # M[2,0] = -cos t sin r, M[2,2] = cos t cos r.
+    tilt = np.arcsin(np.clip(M[2, 1], -1.0, 1.0))
+    pan = np.arctan2(-M[0, 1], M[1, 1])
+    roll = np.arctan2(-M[2, 0], M[2, 2])
+    return float(np.degrees(pan)), float(np.degrees(tilt)), float(np.degrees(roll))
+
+
+def R_from_pan_tilt_roll_deg(pan_deg: float, tilt_deg: float, roll_deg: float) -> F64:
+    """Inverse of :func:`pan_tilt_roll_deg`."""
+    p, t, r = np.radians([pan_deg, tilt_deg, roll_deg])
+    Rz = np.array([[np.cos(p), -np.sin(p), 0], [np.sin(p), np.cos(p), 0], [0, 0, 1]])
+    Rx = np.array([[1, 0, 0], [0, np.cos(t), -np.sin(t)], [0, np.sin(t), np.cos(t)]])
+    Ry = np.array([[np.cos(r), 0, np.sin(r)], [0, 1, 0], [-np.sin(r), 0, np.cos(r)]])
+    return Rz @ Rx @ Ry @ _R_BASE_ZUP
+
+
+# Columns are the camera axes (x right, y down, z forward) expressed in a z-up world when the
+# camera looks along +y: x_cam = +x_world, y_cam = -z_world, z_cam = +y_world.
+_R_BASE_ZUP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
