@@ -3,8 +3,10 @@
 Specs:
 - ``synthetic[:key=value,...]`` - the built-in virtual studio (see ``engine.studio``)
 - ``camera:N`` - live webcam N through OpenCV
+- ``beacons[:...]``, ``beacons-csv:FILE[,...]``, ``beacons-udp:[...]`` - range beacons
+  (see ``engine.sources.beacons``)
 - a TUM RGB-D folder (has ``rgb.txt``)
-- an OTB-style folder (has ``img/`` and ``groundtruth_rect.txt``)
+- an OTB-style folder (has ``img/`` and ``groundtruth_rect.txt``) or a MIL folder (``imgs/``)
 - a video file (``.mp4``, ``.avi``, ``.mov``, ``.mkv``)
 """
 
@@ -39,6 +41,10 @@ def open_source(spec: str) -> Source:
         from engine.sources.synthetic import SyntheticSource
 
         return SyntheticSource.from_options(parse_options(rest))
+    if kind in ("beacons", "beacons-csv", "beacons-udp"):
+        from engine.sources.beacons import open_beacon_source
+
+        return open_beacon_source(kind, rest)
     if kind == "camera":
         from engine.sources.camera_live import CameraSource
 
@@ -55,12 +61,12 @@ def open_source(spec: str) -> Source:
             from engine.sources.tum import TumSource
 
             return TumSource(path)
-        if (path / "img").is_dir():
+        if (path / "img").is_dir() or (path / "imgs").is_dir():
             from engine.sources.otb import OtbSource
 
             return OtbSource(path)
         raise SourceError(
-            f"{path}: not a TUM folder (no rgb.txt) nor an OTB folder (no img/ subfolder)"
+            f"{path}: not a TUM folder (no rgb.txt) nor an OTB/MIL folder (no img/ or imgs/)"
         )
     if path.suffix.lower() in VIDEO_SUFFIXES:
         from engine.sources.video import VideoSource
