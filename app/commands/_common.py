@@ -7,6 +7,10 @@ import math
 import sys
 from typing import Any
 
+from engine.progress import log
+
+__all__ = ["emit_json", "log"]
+
 
 def _clean(obj: Any) -> Any:
     """JSON-safe copy: NaN/inf become null, numpy scalars become Python numbers."""
@@ -27,6 +31,3 @@ def emit_json(obj: dict[str, Any]) -> None:
     print(json.dumps(_clean(obj), separators=(",", ":")), flush=True)
 
 
-def log(msg: str) -> None:
-    """Human-readable progress goes to stderr so stdout's last line stays the JSON."""
-    print(msg, file=sys.stderr, flush=True)

@@ -1,0 +1,147 @@
+"""``studiotrack track SRC --tracker NAME --out FILE [--json] [--max-frames N] [--param k=v ...]``.
+
+Tracks a source to the end and writes the result:
+
+- pose trackers: a TUM trajectory (``timestamp tx ty tz qx qy qz qw``, ``T_world_cam``), one
+  line per frame that has a pose; LOST frames get a line too, holding the last good pose
+  (what the operator's outputs sent), so the file has a line for every frame after the first;
+- box trackers: one ``x,y,w,h`` line per frame (OTB style; ``0,0,0,0`` where there is no box).
+
+The summary (frames, tracked, lost_frames, ms_per_frame, ATE/RPE against the source's ground
+truth, or success AUC / precision at 20 px for box trackers) goes to stdout; with ``--json``
+its last line is one JSON object. Tracker options: each registered tracker may add its own
+(``TrackerSpec.add_cli_arguments``); ``--param key=value`` sets any field of the tracker's
+parameter dataclass.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from app.commands._common import emit_json, log
+from engine.errors import TrackerError
+
+if TYPE_CHECKING:
+    from engine.loop import FrameRecord
+    from engine.tracking_run import TrackingRun
+
+_DISCOVERY_ERROR: list[str] = []
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "track",
+        help="track a source and write the trajectory (TUM) or boxes (x,y,w,h)",
+        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("source", metavar="SRC", help="TUM folder, OTB folder, video, camera:N, "
+                   "synthetic[:key=value,...]")
+    p.add_argument("--tracker", metavar="NAME", default=None,
+                   help="tracker name (default: the app's default tracker)")
+    p.add_argument("--out", metavar="FILE", default=None,
+                   help="output file: TUM trajectory for pose trackers, x,y,w,h lines for boxes")
+    p.add_argument("--json", action="store_true", help="end with one JSON line of results")
+    p.add_argument("--max-frames", type=int, default=None, metavar="N",
+                   help="stop after N frames")
+    p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="set a field of the tracker's parameters (repeatable)")
+    p.add_argument("--list-params", action="store_true",
+                   help="print the chosen tracker's parameters with defaults and exit")
+    _add_tracker_arguments(p)
+    p.set_defaults(func=run)
+
+
+def _add_tracker_arguments(p: argparse.ArgumentParser) -> None:
+    """Let every registered tracker add its own options (e.g. ``--keyframes DIR``)."""
+    try:
+        from engine.trackers import available_trackers
+
+        specs = available_trackers()
+    except Exception as exc:  # a broken tracker module must not break the whole CLI
+        _DISCOVERY_ERROR.append(f"tracker discovery failed: {type(exc).__name__}: {exc}")
+        return
+    for spec in specs.values():
+        if spec.add_cli_arguments is not None:
+            spec.add_cli_arguments(p)
+
+
+def _params_text(params: object) -> str:
+    import dataclasses
+
+    lines = []
+    for f in dataclasses.fields(params):  # type: ignore[arg-type]
+        help_ = f.metadata.get("help", "")
+        line = f"  {f.name} = {getattr(params, f.name)!r}"
+        lines.append(line + (f"  # {help_}" if help_ else ""))
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    from engine.sources import open_source
+    from engine.trackers import default_tracker_name, get_spec
+    from engine.tracking_run import apply_param_overrides, run_tracker, summarize
+
+    if _DISCOVERY_ERROR:
+        raise TrackerError(_DISCOVERY_ERROR[0])
+    if args.max_frames is not None and args.max_frames < 1:
+        raise TrackerError(f"--max-frames must be >= 1, got {args.max_frames}")
+    name = args.tracker or default_tracker_name()
+    spec = get_spec(name)
+    params = spec.params_cls()
+    if spec.params_from_cli is not None:
+        params = spec.params_from_cli(args, params)
+    params = apply_param_overrides(params, args.param)
+    if args.list_params:
+        print(f"{name} ({spec.params_cls.__name__}):\n{_params_text(params)}")
+        return 0
+    if args.out is None:
+        raise TrackerError("track needs --out FILE (the trajectory or box file to write)")
+    out_path = Path(args.out)
+    if out_path.is_dir():
+        raise TrackerError(f"--out {out_path}: is a folder, expected a file name")
+    if not out_path.parent.exists():
+        raise TrackerError(f"--out {out_path}: folder {out_path.parent} does not exist")
+
+    source = open_source(args.source)
+    tracker = spec.factory(params)
+    total = len(source) if args.max_frames is None else min(len(source), args.max_frames)
+    log(f"tracking {getattr(source, 'name', args.source)} with {name} "
+        f"({total or 'unknown number of'} frames)")
+    every = max(1, (total or 100) // 10)
+
+    def progress(rec: FrameRecord) -> None:
+        if (rec.seq + 1) % every == 0:
+            log(f"  frame {rec.seq + 1}/{total or '?'}  {rec.result.state.value}"
+                f"  {rec.process_ms:.1f} ms")
+
+    with source:
+        tr_run = run_tracker(source, tracker, output=spec.output, max_frames=args.max_frames,
+                             on_record=progress)
+    if len(tr_run) == 0:
+        raise TrackerError(f"{args.source}: the source yielded no frames")
+    _write_output(out_path, tr_run)
+    log(f"wrote {out_path}")
+    summary = summarize(tr_run)
+    summary["source"] = args.source
+    summary["out"] = str(out_path)
+    for note in summary.get("notes", []):
+        log(f"note: {note}")
+    if args.json:
+        emit_json(summary)
+    else:
+        print(json.dumps(summary, indent=2))
+    return 0
+
+
+def _write_output(path: Path, tr_run: TrackingRun) -> None:
+    from engine.evaluation.boxes import write_boxes
+    from engine.evaluation.trajectory import write_tum
+
+    if tr_run.output == "box":
+        write_boxes(path, tr_run.boxes_xywh)
+    else:
+        write_tum(path, tr_run.estimated_trajectory())
