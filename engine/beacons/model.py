@@ -1,0 +1,557 @@
+"""Range-only particle-filter SLAM for 2D camera tracking (Yang, Wu, Moniri, Chibelushi 2007).
+
+Each particle holds 2(n + 1) states, the camera position and n beacon ("feature") positions,
+eq. (9)::
+
+    x_t^m = (s_t^m, f_1,t^m, ..., f_n,t^m) = ((x, y)_t^m, (x, y)_1,t^m, ..., (x, y)_n,t^m)
+
+One iteration (sec. III.B, fig. 5): motion model (2D zero-mean Gaussian on the camera),
+weighting with the range observation model of eq. (8)::
+
+    d = g(f, s) = sqrt((x_f - x_s)^2 + (y_f - y_s)^2) + w,   w ~ N(0, sigma_r^2)
+
+(eq. (10) with each particle's point estimate of every beacon, so the integral over f_n is
+the likelihood at that point), Map Adjustment, eq. (12), which moves every particle's beacon
+estimate along the line through its camera so that the predicted range d' approaches the
+measured d::
+
+    movement = p * (d - d') / r        applied to the vector (f - s), r = |f - s| = d'
+
+i.e. a step of length p * (d - d') along the unit vector from camera to beacon (p = 1 puts the
+beacon on the measured circle), then normalisation and systematic resampling.
+
+Initialisation (sec. III.B): the camera starts at the origin (the paper's assumption); the
+first measurement puts each beacon on the circle of the measured radius; the paper reduces
+the remaining angular ambiguity "by using the first two measurements to obtain ... in which
+quadrant the [next location] state is. Then a random point is chosen in that quadrant".
+Range-only data fix the map only up to a rotation/reflection about the start, so something
+must choose the frame: here the operator's rough layout does. With ``hint_sigma_m = 0`` (the
+paper) only each beacon's *quadrant* as seen from the start is used: beacons are drawn on
+their first-range circle inside that quadrant, and the camera's first move is drawn in the
+quadrant that the range changes between the first two measurements point to. This does not
+fix the frame for the paper's own layout (its beacons and path are nearly symmetric about the
+line y = x, so the mirrored map fits the quadrants equally well; see ``bench beacon``). The
+default ``hint_sigma_m = 3`` draws each beacon's initial bearing around the layout's bearing
+with a 3 m spread at its range (a layout known to a few metres), which fixes the frame; the
+beacon positions are still estimated. Without any layout beacons are drawn on the whole circle
+and the map comes out in an arbitrary rotation/reflection about the start.
+
+Beyond the paper: readings may be missing per step (only the beacons read are weighted and
+adjusted); robust weighting (Gaussian/uniform mixture, plus a consensus gate that keeps
+gross outliers out of Map Adjustment); a known-beacon mode (pure localisation) for surveyed
+studios; and a live-changeable particle count (resampled to the new size).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.errors import ParamsError
+
+F64 = NDArray[np.float64]
+
+#: consecutive outlier rejections after which a beacon is re-initialised (robust mode)
+REINIT_AFTER = 5
+
+
+@dataclass(frozen=True, slots=True)
+class BeaconFilterParams:
+    """Operator settings of the beacon SLAM filter (all changeable between steps)."""
+
+    n_particles: int = field(
+        default=200,
+        metadata={"help": "number of particles M", "min": 2, "max": 100000, "step": 50},
+    )
+    motion_sigma_m: float = field(
+        default=0.3,
+        metadata={
+            "help": "std of the 2D zero-mean Gaussian motion model per step (m)",
+            "min": 0.0,
+            "max": 10.0,
+            "step": 0.05,
+        },
+    )
+    range_sigma_m: float = field(
+        default=0.3,
+        metadata={
+            "help": "std of the range noise w in eq. (8) used for weighting (m)",
+            "min": 0.001,
+            "max": 10.0,
+            "step": 0.05,
+        },
+    )
+    map_adjust_p: float = field(
+        default=0.05,
+        metadata={
+            "help": "Map Adjustment gain p of eq. (12): 0 off, 1 puts the beacon on the range "
+            "circle",
+            "min": 0.0,
+            "max": 1.0,
+            "step": 0.05,
+        },
+    )
+    map_adjustment: bool = field(
+        default=True, metadata={"help": "apply Map Adjustment, eq. (12), each step"}
+    )
+    map_adjust_anneal: bool = field(
+        default=False,
+        metadata={
+            "help": "beyond the paper: gain max(p, 1/(k+1)) for the k-th reading of a beacon, "
+            "a running mean of the range circles that settles as the beacon is seen more"
+        },
+    )
+    outlier_prob: float = field(
+        default=0.05,
+        metadata={
+            "help": "robust weighting: prior probability that a range is an outlier "
+            "(0 = plain Gaussian weighting and no outlier gate, as in the paper)",
+            "min": 0.0,
+            "max": 0.9,
+            "step": 0.01,
+        },
+    )
+    outlier_gate_sigma: float = field(
+        default=4.0,
+        metadata={
+            "help": "a reading whose median residual over particles exceeds this many "
+            "predicted std is an outlier this step (robust mode only)",
+            "min": 1.0,
+            "max": 100.0,
+            "step": 0.5,
+        },
+    )
+    max_range_m: float = field(
+        default=60.0,
+        metadata={"help": "range span of the uniform outlier density (m)", "min": 1.0,
+                  "max": 1000.0, "step": 5.0},
+    )
+    hint_sigma_m: float = field(
+        default=3.0,
+        metadata={
+            "help": "how well the layout's beacon positions are known at start (m): 0 uses "
+            "only their quadrants (the paper); > 0 draws each beacon's initial bearing "
+            "around the layout bearing with this spread",
+            "min": 0.0,
+            "max": 100.0,
+            "step": 0.5,
+        },
+    )
+    beacon_jitter_m: float = field(
+        default=0.0,
+        metadata={
+            "help": "beyond the paper: std of the noise added to every particle's beacons "
+            "after resampling (roughening against sample impoverishment; 0 = off)",
+            "min": 0.0,
+            "max": 5.0,
+            "step": 0.01,
+        },
+    )
+    known_beacons: bool = field(
+        default=False,
+        metadata={"help": "beacons surveyed: use the layout as the map (localisation only)"},
+    )
+    quadrant_init: bool = field(
+        default=True,
+        metadata={"help": "initialise beacons/first move in the layout's quadrants (sec. III.B)"},
+    )
+    resample_ess_fraction: float = field(
+        default=1.0,
+        metadata={
+            "help": "resample when the effective sample size drops below this fraction of M "
+            "(1 = every step, as in the paper)",
+            "min": 0.0,
+            "max": 1.0,
+            "step": 0.05,
+        },
+    )
+    seed: int = field(default=0, metadata={"help": "random seed of the filter (reproducible)"})
+
+    def __post_init__(self) -> None:
+        if not 2 <= int(self.n_particles) <= 100000:
+            raise ParamsError(f"n_particles must be in [2, 100000], got {self.n_particles}")
+        checks = {
+            "motion_sigma_m": (self.motion_sigma_m, 0.0, 10.0),
+            "range_sigma_m": (self.range_sigma_m, 1e-3, 10.0),
+            "map_adjust_p": (self.map_adjust_p, 0.0, 1.0),
+            "outlier_prob": (self.outlier_prob, 0.0, 0.9),
+            "outlier_gate_sigma": (self.outlier_gate_sigma, 1.0, 100.0),
+            "max_range_m": (self.max_range_m, 1.0, 1000.0),
+            "hint_sigma_m": (self.hint_sigma_m, 0.0, 100.0),
+            "beacon_jitter_m": (self.beacon_jitter_m, 0.0, 5.0),
+            "resample_ess_fraction": (self.resample_ess_fraction, 0.0, 1.0),
+        }
+        for name, (v, lo, hi) in checks.items():
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise ParamsError(f"{name} must be in [{lo}, {hi}], got {v}")
+
+
+@dataclass(frozen=True, slots=True)
+class FilterEstimate:
+    """Weighted-mean camera and map with their spread after one step."""
+
+    step: int  # 0 = initialisation; -1 = no valid reading yet (the filter has not started)
+    cam_xy: F64  # (2,)
+    cam_cov: F64  # (2, 2)
+    beacons_xy: F64  # (n, 2), NaN for beacons never read
+    beacons_cov: F64  # (n, 2, 2)
+    used: NDArray[np.bool_]  # (n,) readings used for weighting this step
+    outliers: NDArray[np.bool_]  # (n,) readings rejected as outliers this step
+    ess: float  # effective sample size before resampling
+    residual_rms_m: float  # weighted RMS of (d - d') over used readings, before Map Adjustment
+
+    def __post_init__(self) -> None:
+        for a in (self.cam_xy, self.cam_cov, self.beacons_xy, self.beacons_cov, self.used,
+                  self.outliers):
+            a.flags.writeable = False
+
+
+def predicted_ranges(cam_xy: F64, beacons_xy: F64) -> F64:
+    """Eq. (8) without noise: distance from each particle's camera to its beacons.
+
+    ``cam_xy`` (M, 2), ``beacons_xy`` (M, k, 2) -> (M, k).
+    """
+    return np.hypot(beacons_xy[..., 0] - cam_xy[:, None, 0],
+                    beacons_xy[..., 1] - cam_xy[:, None, 1])
+
+
+def range_log_likelihood(
+    residual_m: F64, sigma_m: float, outlier_prob: float = 0.0, max_range_m: float = 60.0
+) -> F64:
+    """Log-likelihood of range residuals d - d' under w ~ N(0, sigma^2) of eq. (8).
+
+    With ``outlier_prob`` > 0 the density is the robust mixture
+    ``(1 - e) N(r; 0, sigma^2) + e / max_range`` so that one wild reading cannot zero a
+    particle's weight.
+    """
+    gauss = -0.5 * (residual_m / sigma_m) ** 2 - math.log(math.sqrt(2.0 * math.pi) * sigma_m)
+    if outlier_prob <= 0.0:
+        return gauss
+    return np.logaddexp(
+        gauss + math.log1p(-outlier_prob), math.log(outlier_prob / max_range_m)
+    )
+
+
+def normalise_log_weights(log_w: F64) -> F64:
+    """Normalise weights so they sum to 1 (sec. III.B), stable for very small likelihoods."""
+    w = np.exp(log_w - np.max(log_w))
+    return w / np.sum(w)
+
+
+def systematic_resample(weights: F64, n_out: int, rng: np.random.Generator) -> NDArray[np.intp]:
+    """Indices of ``n_out`` particles drawn by systematic (low-variance) resampling.
+
+    Particles with large weight are duplicated, small ones dropped (sec. III.B); the expected
+    number of copies of particle m is ``n_out * weights[m]``.
+    """
+    positions = (rng.random() + np.arange(n_out)) / n_out
+    cum = np.cumsum(weights)
+    cum[-1] = 1.0
+    return np.searchsorted(cum, positions, side="right").clip(0, len(weights) - 1)
+
+
+def map_adjustment(
+    cam_xy: F64, beacons_xy: F64, measured_m: F64, p: float | F64
+) -> F64:
+    """Eq. (12): move each beacon estimate along the camera->beacon line by p (d - d').
+
+    ``cam_xy`` (M, 2), ``beacons_xy`` (M, k, 2), ``measured_m`` (k,) -> adjusted (M, k, 2).
+    movement = p (d - d') / r applied to (f - s), with r = d' = |f - s|.
+    """
+    diff = beacons_xy - cam_xy[:, None, :]
+    r = np.hypot(diff[..., 0], diff[..., 1])
+    scale = np.asarray(p) * (measured_m[None, :] - r) / np.maximum(r, 1e-9)
+    return beacons_xy + scale[:, :, None] * diff
+
+
+def weighted_mean_cov(x: F64, w: F64) -> tuple[F64, F64]:
+    """Weighted mean and covariance of samples ``x`` (M, ..., 2) with weights (M,)."""
+    m = x.shape[0]
+    flat = x.reshape(m, -1, x.shape[-1])  # (M, K, 2)
+    mean = w @ flat.reshape(m, -1)
+    mean = mean.reshape(flat.shape[1:])
+    d = flat - mean
+    cov = np.matmul((d * w[:, None, None]).transpose(1, 2, 0), d.transpose(1, 0, 2))
+    return mean.reshape(x.shape[1:]), cov.reshape(*x.shape[1:], x.shape[-1])
+
+
+def _quadrant_range(angle_rad: float) -> tuple[float, float]:
+    q = math.floor((angle_rad % (2 * math.pi)) / (math.pi / 2))
+    return q * math.pi / 2, (q + 1) * math.pi / 2
+
+
+def trilaterate(
+    beacons_xy: F64, ranges_m: F64, guess_xy: F64, iterations: int = 10
+) -> F64 | None:
+    """Gauss-Newton least-squares position from >= 3 known beacons (None if degenerate)."""
+    if len(ranges_m) < 3:
+        return None
+    x = np.array(guess_xy, dtype=np.float64)
+    for _ in range(iterations):
+        diff = x[None, :] - beacons_xy
+        r = np.maximum(np.linalg.norm(diff, axis=1), 1e-9)
+        J = diff / r[:, None]
+        res = ranges_m - r
+        try:
+            dx, *_ = np.linalg.lstsq(J, res, rcond=None)
+        except np.linalg.LinAlgError:
+            return None
+        x = x + dx
+        if float(np.linalg.norm(dx)) < 1e-6:
+            break
+    return x if np.all(np.isfinite(x)) else None
+
+
+class BeaconSlamFilter:
+    """The particle filter of sec. III, vectorised over particles with numpy.
+
+    ``beacon_ids`` fixes the order of the n beacons; ``layout_xy`` (optional) is the
+    operator's layout: only its quadrants are used in SLAM mode, its coordinates are the map
+    in known-beacon mode. Call :meth:`step` once per time step with one range per beacon
+    (NaN where missing).
+    """
+
+    def __init__(
+        self,
+        beacon_ids: Sequence[str],
+        params: BeaconFilterParams | None = None,
+        *,
+        layout_xy: Mapping[str, Sequence[float]] | None = None,
+        start_xy: Sequence[float] = (0.0, 0.0),
+        seed: int | None = None,
+    ) -> None:
+        if len(beacon_ids) == 0:
+            raise ParamsError("beacon SLAM needs at least one beacon id")
+        if len(set(beacon_ids)) != len(beacon_ids):
+            raise ParamsError(f"beacon ids must be unique, got {list(beacon_ids)}")
+        self.ids: tuple[str, ...] = tuple(beacon_ids)
+        self.n = len(self.ids)
+        self.params = params or BeaconFilterParams()
+        layout = dict(layout_xy or {})
+        self.layout_xy = np.array(
+            [layout.get(i, (math.nan, math.nan)) for i in self.ids], dtype=np.float64
+        ).reshape(self.n, 2)
+        self.start_xy = np.asarray(start_xy, dtype=np.float64).reshape(2)
+        self.seed = int(self.params.seed if seed is None else seed)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget everything; the next step re-initialises."""
+        self.rng = np.random.default_rng(self.seed)
+        self.t = 0
+        m = int(self.params.n_particles)
+        self.cam = np.tile(self.start_xy, (m, 1))
+        self.beacons = np.full((m, self.n, 2), np.nan)
+        self.known = np.zeros(self.n, dtype=bool)  # beacon initialised (read at least once)
+        self.weights = np.full(m, 1.0 / m)
+        self.first_ranges = np.full(self.n, np.nan)
+        self.n_reads = np.zeros(self.n)  # readings used per beacon (annealed Map Adjustment)
+        self.n_rejected = np.zeros(self.n, dtype=np.int64)  # consecutive outlier flags
+        self.last: FilterEstimate | None = None
+
+    def set_params(self, params: BeaconFilterParams) -> None:
+        """New settings; a new particle count takes effect by resampling at the next step."""
+        self.params = params
+
+    @property
+    def n_particles(self) -> int:
+        return int(self.cam.shape[0])
+
+    def _hint_angle(self, i: int, centre_xy: F64) -> tuple[float, float] | None:
+        """Angle interval of beacon i's quadrant seen from ``centre_xy`` (None: no hint)."""
+        if not self.params.quadrant_init or not np.all(np.isfinite(self.layout_xy[i])):
+            return None
+        d = self.layout_xy[i] - centre_xy
+        return _quadrant_range(math.atan2(d[1], d[0]))
+
+    def _init_beacon(self, i: int, r: float) -> None:
+        """Put beacon i on the circle of radius r around each particle's camera (sec. III.B).
+
+        The bearing is drawn in the layout's quadrant (or around the layout bearing with
+        ``hint_sigma_m``); a beacon re-initialised after repeated outliers keeps each
+        particle's previous bearing; with no hint at all, anywhere on the circle.
+        """
+        m = self.n_particles
+        p = self.params
+        if p.known_beacons and np.all(np.isfinite(self.layout_xy[i])):
+            self.beacons[:, i, :] = self.layout_xy[i]
+            self.known[i] = True
+            return
+        prev = self.beacons[:, i, :] - self.cam
+        centre = np.average(self.cam, axis=0, weights=self.weights)
+        span = self._hint_angle(i, centre)
+        if np.all(np.isfinite(prev)):
+            spread = max(p.hint_sigma_m, p.range_sigma_m) / max(r, 1e-3)
+            theta = np.arctan2(prev[:, 1], prev[:, 0]) + self.rng.normal(0.0, spread, m)
+        elif span is not None and p.hint_sigma_m > 0.0:
+            d = self.layout_xy[i] - centre
+            theta = math.atan2(d[1], d[0]) + self.rng.normal(0.0, p.hint_sigma_m / max(r, 1e-3), m)
+        else:
+            lo, hi = span if span is not None else (0.0, 2 * math.pi)
+            theta = self.rng.uniform(lo, hi, m)
+        rad = np.maximum(r + self.rng.normal(0.0, p.range_sigma_m, m), 0.0)
+        self.beacons[:, i, 0] = self.cam[:, 0] + rad * np.cos(theta)
+        self.beacons[:, i, 1] = self.cam[:, 1] + rad * np.sin(theta)
+        self.known[i] = True
+
+    def _resize(self, m_new: int) -> None:
+        idx = systematic_resample(self.weights, m_new, self.rng)
+        self.cam = self.cam[idx]
+        self.beacons = self.beacons[idx]
+        self.weights = np.full(m_new, 1.0 / m_new)
+
+    # ------------------------------------------------------------------ one step
+    def _predict(self, ranges: F64, mask: NDArray[np.bool_]) -> None:
+        """Motion model: camera += 2D zero-mean Gaussian (sec. III.A); the first move is
+        drawn in the quadrant the first two measurements point to (sec. III.B)."""
+        p = self.params
+        m = self.n_particles
+        noise = self.rng.normal(0.0, p.motion_sigma_m, (m, 2))
+        if self.t == 1 and p.quadrant_init and not p.known_beacons:
+            signs = self._first_move_quadrant(ranges, mask)
+            if signs is not None:
+                noise = np.abs(noise) * signs
+        self.cam = self.cam + noise
+
+    def _first_move_quadrant(self, ranges: F64, mask: NDArray[np.bool_]) -> F64 | None:
+        """Signs (sx, sy) of the first camera move from the range changes between the first
+        two measurements: r1 - r0 ~ -u . s1 with u the unit vectors to the beacons."""
+        both = mask & np.isfinite(self.first_ranges) & self.known
+        if np.count_nonzero(both) < 2:
+            return None
+        mean_b = np.nanmean(self.beacons[:, both, :], axis=0) - self.start_xy
+        norms = np.linalg.norm(mean_b, axis=1, keepdims=True)
+        if np.any(norms < 1e-6):
+            return None
+        u = mean_b / norms
+        dr = ranges[both] - self.first_ranges[both]
+        if self.params.outlier_prob > 0.0:
+            # a range cannot change by more than the camera can move in one step
+            ok = np.abs(dr) <= 3.0 * (self.params.motion_sigma_m + self.params.range_sigma_m)
+            if np.count_nonzero(ok) < 2:
+                return None
+            u, dr = u[ok], dr[ok]
+        s1, *_ = np.linalg.lstsq(-u, dr, rcond=None)
+        if not np.all(np.isfinite(s1)) or float(np.linalg.norm(s1)) < 1e-9:
+            return None
+        return np.where(s1 >= 0.0, 1.0, -1.0)
+
+    def _first_step(self, ranges: F64, mask: NDArray[np.bool_]) -> None:
+        p = self.params
+        if p.known_beacons:
+            for i in range(self.n):
+                if np.all(np.isfinite(self.layout_xy[i])):
+                    self.beacons[:, i, :] = self.layout_xy[i]
+                    self.known[i] = True
+            usable = mask & self.known
+            guess = self.start_xy
+            pos = trilaterate(self.layout_xy[usable], ranges[usable], guess)
+            if pos is not None:
+                spread = max(p.range_sigma_m, 0.05)
+                self.cam = pos + self.rng.normal(0.0, spread, (self.n_particles, 2))
+        for i in np.flatnonzero(mask & ~self.known):
+            self._init_beacon(int(i), float(ranges[i]))
+        self.first_ranges = np.where(mask, ranges, np.nan)
+
+    def step(self, ranges_m: Sequence[float] | F64) -> FilterEstimate:
+        """One iteration of fig. 5 with one range per beacon in ``ids`` order (NaN = missing)."""
+        p = self.params
+        ranges = np.asarray(ranges_m, dtype=np.float64).reshape(self.n)
+        mask = np.isfinite(ranges) & (ranges >= 0.0)
+        if int(p.n_particles) != self.n_particles:
+            self._resize(int(p.n_particles))
+        m = self.n_particles
+        used = np.zeros(self.n, dtype=bool)
+        outliers = np.zeros(self.n, dtype=bool)
+        residual_rms = math.nan
+        log_w = np.zeros(m)
+        if self.t == 0:
+            if not np.any(mask):  # nothing read yet: stay before the first step
+                self.t = -1
+            else:
+                self._first_step(ranges, mask)
+            used = mask & self.known
+        else:
+            self._predict(ranges, mask)
+            active = mask & self.known
+            newly = mask & ~self.known
+            idx = np.flatnonzero(active)
+            if idx.size:
+                d_pred = predicted_ranges(self.cam, self.beacons[:, idx, :])  # eq. (8)
+                resid = ranges[idx][None, :] - d_pred
+                inl = np.ones(idx.size, dtype=bool)
+                if p.outlier_prob > 0.0 and idx.size >= 2:
+                    # consensus gate: a reading that (nearly) all particles disagree with
+                    med = np.median(resid, axis=0)
+                    spread = np.std(d_pred, axis=0)
+                    gate = p.outlier_gate_sigma * np.sqrt(p.range_sigma_m**2 + spread**2)
+                    bad = np.abs(med) > gate
+                    if not np.all(bad):  # all disagree: the filter, not the sensors, is off
+                        inl = ~bad
+                outliers[idx[~inl]] = True
+                used[idx[inl]] = True
+                self.n_rejected[idx[inl]] = 0
+                self.n_rejected[idx[~inl]] += 1
+                # weighting, eq. (10), with each particle's point map: prod over beacons
+                ll = range_log_likelihood(
+                    resid[:, inl], p.range_sigma_m, p.outlier_prob, p.max_range_m
+                )
+                log_w = np.sum(ll, axis=1)
+                w_tmp = normalise_log_weights(log_w)
+                residual_rms = float(math.sqrt(np.sum(w_tmp @ (resid[:, inl] ** 2)) /
+                                               max(int(np.count_nonzero(inl)), 1)))
+                if p.map_adjustment and not p.known_beacons and p.map_adjust_p > 0.0:
+                    adj = idx[inl]
+                    if adj.size:
+                        gain: float | F64 = p.map_adjust_p
+                        if p.map_adjust_anneal:
+                            gain = np.maximum(p.map_adjust_p, 1.0 / (self.n_reads[adj] + 1.0))
+                        self.beacons[:, adj, :] = map_adjustment(
+                            self.cam, self.beacons[:, adj, :], ranges[adj], gain
+                        )  # eq. (12)
+            self.n_reads[used] += 1.0
+            if not p.known_beacons:
+                # a beacon rejected REINIT_AFTER times in a row was initialised from an
+                # outlier (or has been moved): start it again from the current reading
+                stale = mask & (self.n_rejected >= REINIT_AFTER)
+                self.known[stale] = False
+                self.n_rejected[stale] = 0
+                self.n_reads[stale] = 0.0
+                newly = newly | stale
+            for i in np.flatnonzero(newly):
+                self._init_beacon(int(i), float(ranges[i]))
+        # normalisation (sec. III.B); weights carry over when resampling is skipped
+        self.weights = normalise_log_weights(np.log(np.maximum(self.weights, 1e-300)) + log_w)
+        ess = float(1.0 / np.sum(self.weights**2))
+        cam_xy, cam_cov = weighted_mean_cov(self.cam, self.weights)
+        b_xy = np.full((self.n, 2), np.nan)
+        b_cov = np.full((self.n, 2, 2), np.nan)
+        if np.any(self.known):
+            bm, bc = weighted_mean_cov(self.beacons[:, self.known, :], self.weights)
+            b_xy[self.known] = bm
+            b_cov[self.known] = bc
+        est = FilterEstimate(
+            step=self.t,
+            cam_xy=cam_xy,
+            cam_cov=cam_cov,
+            beacons_xy=b_xy,
+            beacons_cov=b_cov,
+            used=used,
+            outliers=outliers,
+            ess=ess,
+            residual_rms_m=residual_rms,
+        )
+        if self.t > 0 and ess < p.resample_ess_fraction * m + 1e-9:
+            self._resize(m)  # systematic resampling (sec. III.B)
+            if p.beacon_jitter_m > 0.0 and not p.known_beacons:
+                self.beacons = self.beacons + self.rng.normal(
+                    0.0, p.beacon_jitter_m, self.beacons.shape
+                )
+        self.t += 1
+        self.last = est
+        return est

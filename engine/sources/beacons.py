@@ -1,0 +1,305 @@
+"""Range-beacon sources: frames without images whose ``extras`` carry range readings.
+
+Every frame has ``color_bgr=None`` and ``extras``:
+
+- ``"ranges"``: ``{beacon_id: range_m}`` of this step (missing beacons left out; empty for
+  the heartbeat frames of the live UDP source, which let the engine loop poll its stop flag);
+- ``"gt_xy"``: ``(x, y)`` true camera position or None; ``gt_T_world_cam`` holds it too;
+- ``"beacon_layout"``: ``{beacon_id: (x, y)}`` the operator's layout or None (the tracker
+  uses only its quadrants in SLAM mode, its coordinates in known-beacon mode);
+- ``"gt_beacons"``: the true beacons (simulator only) for evaluation;
+- ``"input_stats"``: skipped-input counters (CSV / UDP), see :class:`engine.beacons.io.InputStats`.
+
+Specs (see :func:`open_beacon_source`):
+
+- ``beacons[:layout=paper|FILE,steps=120,speed=0.15,noise=0.1,dropout=0,outliers=0,seed=0,fps=10]``
+- ``beacons-csv:FILE[,layout=FILE,window=0]``
+- ``beacons-udp:[port=9870,host=127.0.0.1,layout=FILE,heartbeat=0.5,idle_timeout=0]``
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from engine.camera import Intrinsics
+from engine.errors import ParamsError, SourceError
+from engine.frames import Frame
+from engine.sources.base import Source
+
+DEFAULT_UDP_PORT = 9870
+
+
+def _T_from_xy(xy: Sequence[float] | None) -> np.ndarray | None:
+    if xy is None:
+        return None
+    T = np.eye(4)
+    T[0, 3], T[1, 3] = float(xy[0]), float(xy[1])
+    return T
+
+
+def _frozen_layout(layout: Mapping[str, Sequence[float]] | None) -> Mapping[str, Any] | None:
+    if layout is None:
+        return None
+    return MappingProxyType({k: (float(v[0]), float(v[1])) for k, v in layout.items()})
+
+
+def _frame(
+    index: int,
+    t_s: float,
+    ranges: Mapping[str, float],
+    gt_xy: Sequence[float] | None,
+    layout: Mapping[str, Any] | None,
+    gt_beacons: Mapping[str, Any] | None = None,
+    stats: dict[str, object] | None = None,
+    beacon_ids: tuple[str, ...] | None = None,
+) -> Frame:
+    extras: dict[str, Any] = {
+        "ranges": MappingProxyType(dict(ranges)),
+        "gt_xy": None if gt_xy is None else (float(gt_xy[0]), float(gt_xy[1])),
+        "beacon_layout": layout,
+        "gt_beacons": gt_beacons,
+    }
+    if stats is not None:
+        extras["input_stats"] = stats
+    if beacon_ids is not None:
+        extras["beacon_ids"] = beacon_ids
+    return Frame(index=index, timestamp_s=t_s, color_bgr=None, gt_T_world_cam=_T_from_xy(gt_xy),
+                 extras=extras)
+
+
+class BeaconSimSource(Source):
+    """The simulated studio of the paper (or any layout), one frame per time step."""
+
+    live = False
+
+    def __init__(
+        self,
+        layout: Mapping[str, Sequence[float]] | None = None,
+        config: Any | None = None,
+        fps: float = 10.0,
+    ) -> None:
+        from engine.beacons.simulator import PAPER_LAYOUT, SimConfig, simulate
+
+        self.layout = dict(layout if layout is not None else PAPER_LAYOUT)
+        self.config = config or SimConfig()
+        self.run = simulate(self.layout, self.config)
+        self.nominal_fps = float(fps)
+        self.name = f"beacon simulator ({len(self.layout)} beacons, {self.config.n_steps} steps)"
+        self._layout = _frozen_layout(self.layout)
+
+    @classmethod
+    def from_options(cls, opts: Mapping[str, str]) -> BeaconSimSource:
+        from engine.beacons.io import load_layout
+        from engine.beacons.simulator import SimConfig
+
+        o = dict(opts)
+        lay_opt = o.pop("layout", "paper")
+        layout = None if lay_opt in ("", "paper") else load_layout(lay_opt)
+        names = {"steps": ("n_steps", int), "speed": ("speed_m", float),
+                 "noise": ("noise_sigma_m", float), "dropout": ("dropout_prob", float),
+                 "outliers": ("outlier_prob", float), "outlier_max": ("outlier_max_m", float),
+                 "seed": ("seed", int)}
+        kw: dict[str, Any] = {}
+        fps = 10.0
+        for key, value in o.items():
+            try:
+                if key == "fps":
+                    fps = float(value)
+                elif key in names:
+                    field_name, conv = names[key]
+                    kw[field_name] = conv(value)
+                else:
+                    raise SourceError(
+                        f"beacons source: unknown option {key!r} (known: layout, fps, "
+                        f"{', '.join(names)})"
+                    )
+            except ValueError:
+                raise SourceError(
+                    f"beacons source: option {key}={value!r} is not a number"
+                ) from None
+        try:
+            cfg = SimConfig(**kw)
+        except ParamsError as exc:
+            raise SourceError(f"beacons source: {exc}") from None
+        if not (math.isfinite(fps) and fps > 0):
+            raise SourceError(f"beacons source: fps must be > 0, got {fps}")
+        return cls(layout, cfg, fps)
+
+    @property
+    def intrinsics(self) -> Intrinsics | None:
+        return None
+
+    def __len__(self) -> int:
+        return len(self.run.path_xy)
+
+    def frames(self) -> Iterator[Frame]:
+        gt_b = MappingProxyType(
+            {i: (float(x), float(y)) for i, (x, y) in zip(self.run.ids, self.run.beacons_xy,
+                                                          strict=True)}
+        )
+        for t in range(len(self.run.path_xy)):
+            yield _frame(t, t / self.nominal_fps, self.run.ranges_dict(t), self.run.path_xy[t],
+                         self._layout, gt_b)
+
+
+class BeaconCsvSource(Source):
+    """A recorded range log (``timestamp, beacon_id, range_m``)."""
+
+    live = False
+
+    def __init__(
+        self,
+        path: str,
+        layout: Mapping[str, Sequence[float]] | None = None,
+        window_s: float = 0.0,
+    ) -> None:
+        from engine.beacons.io import read_range_csv
+
+        self.path = path
+        self.layout = dict(layout) if layout is not None else None
+        self.steps, stats = read_range_csv(path, self.layout.keys() if self.layout else None,
+                                           window_s)
+        self.stats = stats.as_dict()
+        if not self.steps:
+            raise SourceError(f"{path}: no valid range readings ({self.stats['malformed']} "
+                              f"malformed, {self.stats['unknown_ids']} unknown ids)")
+        ts = [s.timestamp_s for s in self.steps]
+        span = ts[-1] - ts[0]
+        self.nominal_fps = (len(ts) - 1) / span if len(ts) > 1 and span > 0 else 10.0
+        self.name = f"beacon log {path} ({len(self.steps)} steps)"
+        self._layout = _frozen_layout(self.layout)
+        self.beacon_ids = tuple(sorted({b for s in self.steps for b in s.ranges_m}))
+
+    @classmethod
+    def from_rest(cls, rest: str) -> BeaconCsvSource:
+        from engine.beacons.io import load_layout
+
+        path, opts = _split_path_options(rest, "beacons-csv")
+        if not path:
+            raise SourceError("beacons-csv: expected beacons-csv:FILE[,layout=FILE,window=S]")
+        layout = load_layout(opts.pop("layout")) if "layout" in opts else None
+        try:
+            window = float(opts.pop("window", "0"))
+        except ValueError:
+            raise SourceError("beacons-csv: window must be a number of seconds") from None
+        if opts:
+            raise SourceError(f"beacons-csv: unknown option(s) {sorted(opts)}")
+        return cls(path, layout, window)
+
+    @property
+    def intrinsics(self) -> Intrinsics | None:
+        return None
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def frames(self) -> Iterator[Frame]:
+        for i, s in enumerate(self.steps):
+            yield _frame(i, s.timestamp_s, s.ranges_m, s.gt_xy, self._layout, None, self.stats,
+                         self.beacon_ids)
+
+
+class BeaconUdpSource(Source):
+    """Live range readings over UDP (JSON datagrams, see :mod:`engine.beacons.io`)."""
+
+    live = True
+
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = DEFAULT_UDP_PORT,
+        layout: Mapping[str, Sequence[float]] | None = None,
+        heartbeat_s: float = 0.5,
+        idle_timeout_s: float = 0.0,
+    ) -> None:
+        from engine.beacons.io import UdpRangeListener
+
+        self.layout = dict(layout) if layout is not None else None
+        self.listener = UdpRangeListener(host, port, self.layout.keys() if self.layout else None)
+        self.heartbeat_s = float(heartbeat_s)
+        self.idle_timeout_s = float(idle_timeout_s)
+        self.nominal_fps = 10.0
+        self.name = f"beacon UDP {self.listener.host}:{self.listener.port}"
+        self._layout = _frozen_layout(self.layout)
+
+    @classmethod
+    def from_options(cls, opts: Mapping[str, str]) -> BeaconUdpSource:
+        from engine.beacons.io import load_layout
+
+        o = dict(opts)
+        layout = load_layout(o.pop("layout")) if "layout" in o else None
+        try:
+            port = int(o.pop("port", str(DEFAULT_UDP_PORT)))
+            heartbeat = float(o.pop("heartbeat", "0.5"))
+            idle = float(o.pop("idle_timeout", "0"))
+        except ValueError:
+            raise SourceError("beacons-udp: port/heartbeat/idle_timeout must be numbers") from None
+        host = o.pop("host", "127.0.0.1")
+        if o:
+            raise SourceError(f"beacons-udp: unknown option(s) {sorted(o)}")
+        return cls(host, port, layout, heartbeat, idle)
+
+    @property
+    def intrinsics(self) -> Intrinsics | None:
+        return None
+
+    def __len__(self) -> int:
+        return 0
+
+    def frames(self) -> Iterator[Frame]:
+        index = 0
+        last_data = time.monotonic()
+        while True:
+            step = self.listener.receive(self.heartbeat_s if self.heartbeat_s > 0 else 0.5)
+            now = time.monotonic()
+            stats = self.listener.stats.as_dict()
+            if step is None:
+                if self.idle_timeout_s > 0 and now - last_data > self.idle_timeout_s:
+                    return
+                if self.heartbeat_s > 0:  # empty frame: lets the loop poll its stop flag
+                    yield _frame(index, now, {}, None, self._layout, None, stats)
+                    index += 1
+                continue
+            last_data = now
+            yield _frame(index, step.timestamp_s, step.ranges_m, step.gt_xy, self._layout, None,
+                         stats)
+            index += 1
+
+    def close(self) -> None:
+        self.listener.close()
+
+
+def _split_path_options(rest: str, kind: str) -> tuple[str, dict[str, str]]:
+    """``"FILE,a=1,b=2"`` -> (``"FILE"``, {a: 1, b: 2}); ``file=FILE`` works too."""
+    path = ""
+    opts: dict[str, str] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, sep, value = item.partition("=")
+        if not sep:
+            if path:
+                raise SourceError(f"{kind}: two file names given ({path!r}, {item!r})")
+            path = item
+        elif key.strip() == "file":
+            path = value.strip()
+        else:
+            opts[key.strip()] = value.strip()
+    return path, opts
+
+
+def open_beacon_source(kind: str, rest: str) -> Source:
+    """Open ``beacons`` / ``beacons-csv`` / ``beacons-udp`` specs (called by ``open_source``)."""
+    from engine.sources import parse_options
+
+    if kind == "beacons":
+        return BeaconSimSource.from_options(parse_options(rest))
+    if kind == "beacons-csv":
+        return BeaconCsvSource.from_rest(rest)
+    if kind == "beacons-udp":
+        return BeaconUdpSource.from_options(parse_options(rest))
+    raise SourceError(f"unknown beacon source kind {kind!r}")

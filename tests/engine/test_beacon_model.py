@@ -1,0 +1,214 @@
+"""The beacon SLAM filter (Yang 2007): observation model, Map Adjustment, resampling, seeds."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from engine.beacons.model import (
+    BeaconFilterParams,
+    BeaconSlamFilter,
+    map_adjustment,
+    normalise_log_weights,
+    predicted_ranges,
+    range_log_likelihood,
+    systematic_resample,
+    trilaterate,
+    weighted_mean_cov,
+)
+from engine.beacons.simulator import PAPER_LAYOUT, SimConfig, paper_camera_path, simulate
+from engine.errors import ParamsError
+
+
+def _run(params: BeaconFilterParams, sim_cfg: SimConfig, seed: int = 0) -> tuple[np.ndarray, ...]:
+    sim = simulate(PAPER_LAYOUT, sim_cfg)
+    f = BeaconSlamFilter(sim.ids, params, layout_xy=PAPER_LAYOUT, seed=seed)
+    path = np.array([f.step(sim.ranges_m[t]).cam_xy for t in range(len(sim.path_xy))])
+    assert f.last is not None
+    return path, sim.path_xy, f.last.beacons_xy, sim.beacons_xy
+
+
+# ---------------------------------------------------------------- observation model, eq. (8)
+def test_predicted_ranges_are_euclidean_distances() -> None:
+    cam = np.array([[0.0, 0.0], [3.0, 4.0]])
+    beacons = np.array([[[3.0, 4.0], [10.0, 0.0]], [[3.0, 4.0], [0.0, 0.0]]])
+    d = predicted_ranges(cam, beacons)
+    np.testing.assert_allclose(d, [[5.0, 10.0], [0.0, 5.0]])
+
+
+def test_range_likelihood_is_gaussian_and_robust_mixture_bounded() -> None:
+    r = np.array([0.0, 0.3, 1.0, 30.0])
+    sigma = 0.3
+    expected = -0.5 * (r / sigma) ** 2 - math.log(math.sqrt(2 * math.pi) * sigma)
+    np.testing.assert_allclose(range_log_likelihood(r, sigma), expected)
+    robust = range_log_likelihood(r, sigma, outlier_prob=0.05, max_range_m=60.0)
+    assert robust[-1] >= math.log(0.05 / 60.0) - 1e-9  # a wild reading cannot zero a weight
+    assert robust[0] == pytest.approx(expected[0] + math.log(0.95), abs=1e-3)
+
+
+# ---------------------------------------------------------------- Map Adjustment, eq. (12)
+def test_map_adjustment_moves_along_line_by_p_times_residual() -> None:
+    cam = np.array([[1.0, 1.0]])
+    beacon = np.array([[[4.0, 5.0]]])  # d' = 5
+    for p in (0.0, 0.3, 1.0):
+        out = map_adjustment(cam, beacon, np.array([7.0]), p)
+        new_r = float(np.linalg.norm(out[0, 0] - cam[0]))
+        assert new_r == pytest.approx(5.0 + p * (7.0 - 5.0))  # |d - d'| shrinks by (1 - p)
+        direction = (out[0, 0] - cam[0]) / new_r
+        np.testing.assert_allclose(direction, [0.6, 0.8])  # along the camera->beacon line
+
+
+def test_map_adjustment_moves_estimates_toward_consistency_in_the_filter() -> None:
+    """With the camera held at the truth, repeated MA steps make the map agree with ranges."""
+    rng = np.random.default_rng(3)
+    truth = np.array(list(PAPER_LAYOUT.values()))
+    path = paper_camera_path(60)
+    beacons = truth[None] + rng.normal(0.0, 3.0, (50, 4, 2))
+    first = None
+    for s in path:
+        cam = np.tile(s, (50, 1))
+        d = np.linalg.norm(truth - s, axis=1)
+        resid = np.abs(d[None] - predicted_ranges(cam, beacons))
+        first = resid.mean() if first is None else first
+        beacons = map_adjustment(cam, beacons, d, 0.3)
+    final_resid = np.abs(
+        np.linalg.norm(truth - path[-1], axis=1)[None] - predicted_ranges(
+            np.tile(path[-1], (50, 1)), beacons)
+    ).mean()
+    assert final_resid < 0.05 * first
+    err_before = np.linalg.norm(truth[None] + 0 - truth[None], axis=2)  # noqa: F841 - shape only
+    assert float(np.mean(np.linalg.norm(beacons - truth[None], axis=2))) < 3.0 * math.sqrt(2)
+
+
+# ---------------------------------------------------------------- weights and resampling
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(0.0, 10.0), min_size=2, max_size=40), st.integers(0, 2**31 - 1))
+def test_systematic_resampling_preserves_the_distribution(raw: list[float], seed: int) -> None:
+    w = np.asarray(raw) + 1e-3
+    w = w / w.sum()
+    n_out = 500
+    idx = systematic_resample(w, n_out, np.random.default_rng(seed))
+    counts = np.bincount(idx, minlength=len(w))
+    # systematic resampling: every particle gets floor or ceil of n_out * w copies
+    assert np.all(np.abs(counts - n_out * w) < 1.0 + 1e-9)
+    x = np.linspace(-3.0, 7.0, len(w))
+    assert abs(x[idx].mean() - float(w @ x)) < 10.0 / n_out * 2
+
+
+def test_normalised_weights_sum_to_one_even_for_tiny_likelihoods() -> None:
+    w = normalise_log_weights(np.array([-1e5, -1e5 - 1.0, -1e5 - 50.0]))
+    assert w.sum() == pytest.approx(1.0)
+    assert w[0] > w[1] > w[2] > 0.0
+
+
+def test_weighted_mean_cov() -> None:
+    x = np.array([[0.0, 0.0], [2.0, 0.0]])
+    mean, cov = weighted_mean_cov(x, np.array([0.5, 0.5]))
+    np.testing.assert_allclose(mean, [1.0, 0.0])
+    np.testing.assert_allclose(cov, [[1.0, 0.0], [0.0, 0.0]])
+
+
+# ---------------------------------------------------------------- whole filter
+def test_particles_hold_2_n_plus_1_states() -> None:
+    f = BeaconSlamFilter(list(PAPER_LAYOUT), BeaconFilterParams(n_particles=30),
+                         layout_xy=PAPER_LAYOUT)
+    f.step([14.1, 22.0, 20.0, 15.8])
+    assert f.cam.shape == (30, 2)
+    assert f.beacons.shape == (30, 4, 2)
+    # sec. III.B: after the first measurement each beacon lies on its range circle
+    np.testing.assert_allclose(np.linalg.norm(f.beacons[:, 0], axis=1), 14.1, atol=1.5)
+
+
+def test_seeded_runs_are_reproducible() -> None:
+    cfg = SimConfig(n_steps=40, seed=5, dropout_prob=0.1, outlier_prob=0.05)
+    p = BeaconFilterParams(n_particles=100)
+    a = _run(p, cfg, seed=11)
+    b = _run(p, cfg, seed=11)
+    c = _run(p, cfg, seed=12)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[2], b[2])
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_known_beacon_mode_localises_accurately() -> None:
+    path, truth, _, _ = _run(BeaconFilterParams(n_particles=100, known_beacons=True),
+                             SimConfig(seed=2))
+    assert float(np.sqrt(np.mean(np.sum((path - truth) ** 2, axis=1)))) < 0.3
+
+
+def test_slam_tracks_the_paper_path() -> None:
+    path, truth, b_est, b_true = _run(BeaconFilterParams(), SimConfig(seed=1))
+    rmse = float(np.sqrt(np.mean(np.sum((path - truth) ** 2, axis=1))))
+    assert rmse < 1.5
+    assert float(np.mean(np.linalg.norm(b_est - b_true, axis=1))) < 4.0
+
+
+def test_missing_readings_and_outliers_are_handled() -> None:
+    cfg = SimConfig(seed=4, dropout_prob=0.3, outlier_prob=0.1)
+    sim = simulate(PAPER_LAYOUT, cfg)
+    f = BeaconSlamFilter(sim.ids, BeaconFilterParams(), layout_xy=PAPER_LAYOUT)
+    flagged = 0
+    for t in range(len(sim.path_xy)):
+        est = f.step(sim.ranges_m[t])
+        assert np.all(np.isfinite(est.cam_xy))
+        assert not np.any(est.used & ~np.isfinite(sim.ranges_m[t]))  # missing never used
+        flagged += int(np.count_nonzero(est.outliers & sim.outlier_mask[t]))
+    assert flagged >= 0.5 * int(np.count_nonzero(sim.outlier_mask[1:]))
+
+
+def test_gross_outlier_is_rejected_and_not_adjusted_into_the_map() -> None:
+    f = BeaconSlamFilter(list(PAPER_LAYOUT), BeaconFilterParams(known_beacons=False),
+                         layout_xy=PAPER_LAYOUT, seed=0)
+    truth = np.array(list(PAPER_LAYOUT.values()))
+    for s in paper_camera_path(10)[:10]:
+        f.step(np.linalg.norm(truth - s, axis=1))
+    before = f.beacons[:, 1].copy()
+    r = np.linalg.norm(truth - paper_camera_path(10)[10], axis=1)
+    r[1] += 15.0
+    est = f.step(r)
+    assert est.outliers[1]
+    assert not est.used[1]
+    np.testing.assert_array_equal(est.outliers[[0, 2, 3]], False)
+    # the rejected beacon was not pulled by Map Adjustment (only resampled)
+    assert np.all(np.isin(f.beacons[:, 1, 0], before[:, 0]))
+
+
+def test_particle_count_change_applies_next_step() -> None:
+    f = BeaconSlamFilter(list(PAPER_LAYOUT), BeaconFilterParams(n_particles=50),
+                         layout_xy=PAPER_LAYOUT)
+    truth = np.array(list(PAPER_LAYOUT.values()))
+    f.step(np.linalg.norm(truth, axis=1))
+    f.set_params(dataclasses.replace(f.params, n_particles=120))
+    assert f.n_particles == 50
+    f.step(np.linalg.norm(truth - [0.1, 0.1], axis=1))
+    assert f.n_particles == 120
+    assert f.beacons.shape == (120, 4, 2)
+
+
+def test_params_validation() -> None:
+    with pytest.raises(ParamsError, match="map_adjust_p"):
+        BeaconFilterParams(map_adjust_p=1.5)
+    with pytest.raises(ParamsError, match="n_particles"):
+        BeaconFilterParams(n_particles=1)
+    with pytest.raises(ParamsError, match="unique"):
+        BeaconSlamFilter(["A", "A"])
+
+
+def test_trilaterate() -> None:
+    b = np.array(list(PAPER_LAYOUT.values()))
+    x = trilaterate(b, np.linalg.norm(b - [2.0, -1.0], axis=1), np.zeros(2))
+    assert x is not None
+    np.testing.assert_allclose(x, [2.0, -1.0], atol=1e-6)
+
+
+def test_steps_without_any_reading_do_not_start_the_filter() -> None:
+    f = BeaconSlamFilter(["A", "B"], BeaconFilterParams(n_particles=20))
+    est = f.step([math.nan, math.nan])
+    assert est.step == -1
+    assert f.t == 0
+    assert f.step([5.0, 6.0]).step == 0  # the first measurement initialises (sec. III.B)
