@@ -1,0 +1,85 @@
+"""What every page gets: the engine bridge, the log, settings and the current project.
+
+Pages are built by ``factory(ctx: AppContext)`` (see :mod:`app.pages`). They listen to
+``ctx.bridge`` signals (``started``, ``result_ready``, ``failed``, ``finished``) to show live
+data and call ``ctx.bridge.start/stop/set_params`` to control the engine; they report through
+``ctx.log`` (``ctx.log.info(...)``, ``.warning``, ``.error``), which feeds the log dock and,
+for warnings and errors, the main window's status bar.
+
+QSettings holds only window geometry and recent files (STYLE.md); everything else is
+persisted as versioned JSON by the engine.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import QObject, QSettings, Signal
+
+from app.engine_bridge import EngineBridge
+from widgets.log_panel import LogModel
+
+ORGANIZATION = "StudioTrack"
+APPLICATION = "StudioTrack"
+MAX_RECENT = 10
+
+#: set to an .ini path to keep settings out of the user's profile (tests, CI, kiosks)
+SETTINGS_ENV = "STUDIOTRACK_SETTINGS"
+
+
+def default_settings() -> QSettings:
+    """The app's QSettings: ``$STUDIOTRACK_SETTINGS`` (ini file) if set, else per user."""
+    path = os.environ.get(SETTINGS_ENV)
+    if path:
+        return QSettings(path, QSettings.Format.IniFormat)
+    return QSettings(ORGANIZATION, APPLICATION)
+
+
+class AppContext(QObject):
+    """Shared state handed to every page factory."""
+
+    project_changed = Signal(object)  # the new project (or None)
+    recent_files_changed = Signal()
+
+    def __init__(
+        self,
+        bridge: EngineBridge | None = None,
+        log: LogModel | None = None,
+        settings: QSettings | None = None,
+        parent: QObject | None = None,
+    ) -> None:
+        super().__init__(parent)
+        self.bridge = bridge if bridge is not None else EngineBridge(self)
+        self.log = log if log is not None else LogModel(parent=self)
+        self.settings = settings if settings is not None else default_settings()
+        self._project: Any | None = None
+
+    # ------------------------------------------------------------- project slot
+    @property
+    def project(self) -> Any | None:
+        """The open project (``None`` until project files exist)."""
+        return self._project
+
+    def set_project(self, project: Any | None) -> None:
+        self._project = project
+        self.project_changed.emit(project)
+
+    # ------------------------------------------------------------- recent files
+    def recent_files(self) -> list[str]:
+        value = self.settings.value("recent_files", [])
+        if isinstance(value, str):  # QSettings returns a bare str for one-item lists
+            value = [value]
+        return [str(v) for v in (value or []) if str(v)]
+
+    def add_recent_file(self, path: str | Path) -> None:
+        text = str(path)
+        items = [text, *[p for p in self.recent_files() if p != text]][:MAX_RECENT]
+        self.settings.setValue("recent_files", items)
+        self.recent_files_changed.emit()
+
+    def shutdown(self) -> None:
+        """Stop the engine and flush settings (called when the main window closes)."""
+        self.bridge.stop()
+        self.settings.sync()

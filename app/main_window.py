@@ -1,0 +1,196 @@
+"""The main window: page navigation on the left, pages in the middle, log dock, status bar.
+
+Pages come from :func:`app.pages.discover_pages` (one module per page); a page whose factory
+raises is replaced by a placeholder showing the error, so one broken page never takes the
+window down. Engine failures and logged warnings/errors appear in the status bar.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+from PySide6.QtCore import QByteArray, QSize, Qt, Slot
+from PySide6.QtGui import QAction, QCloseEvent, QIcon, QKeySequence
+from PySide6.QtWidgets import (
+    QHBoxLayout,
+    QLabel,
+    QListWidget,
+    QListWidgetItem,
+    QMainWindow,
+    QStackedWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.context import AppContext
+from app.main import asset_path, icon
+from app.pages import PageSpec, discover_pages
+from widgets.log_panel import LogDock, LogEntry, LogLevel
+
+DEFAULT_SIZE = (1600, 960)
+STATUS_STYLES = {
+    LogLevel.ERROR: "color: #ff6b6b; font-weight: bold;",
+    LogLevel.WARNING: "color: #f0b429;",
+    LogLevel.INFO: "",
+    LogLevel.DEBUG: "",
+}
+
+
+def page_icon(title: str) -> QIcon:
+    """``assets/icons/<title>.svg`` (lower case, spaces as ``_``), else a generic page icon."""
+    slug = title.lower().replace(" ", "_")
+    name = f"icons/{slug}.svg" if asset_path(f"icons/{slug}.svg").exists() else "icons/page.svg"
+    return icon(name)
+
+
+def _error_page(title: str, message: str) -> QWidget:
+    page = QWidget()
+    layout = QVBoxLayout(page)
+    label = QLabel(f"<h3>The {title} page could not be built</h3><pre>{message}</pre>")
+    label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+    label.setWordWrap(True)
+    layout.addWidget(label)
+    layout.addStretch(1)
+    return page
+
+
+class MainWindow(QMainWindow):
+    """StudioTrack operator window."""
+
+    def __init__(
+        self,
+        ctx: AppContext,
+        pages: list[PageSpec] | None = None,
+        *,
+        restore_geometry: bool = True,
+    ) -> None:
+        super().__init__()
+        self.ctx = ctx
+        self.setObjectName("main_window")
+        self.setWindowTitle("StudioTrack")
+
+        # status bar first: page factories may already log errors
+        self.status_label = QLabel()
+        self.engine_label = QLabel("Engine idle")
+        self.engine_label.setObjectName("engine_label")
+        self.statusBar().addWidget(self.status_label, 1)
+        self.statusBar().addPermanentWidget(self.engine_label)
+        ctx.log.entry_added.connect(self._on_log_entry)
+
+        self.nav = QListWidget()
+        self.nav.setObjectName("page_nav")
+        self.nav.setIconSize(QSize(18, 18))
+        self.nav.setFixedWidth(150)
+        self.stack = QStackedWidget()
+        self.pages: dict[str, QWidget] = {}
+        for spec in pages if pages is not None else discover_pages():
+            self._add_page(spec)
+        self.nav.currentRowChanged.connect(self.stack.setCurrentIndex)
+        if self.nav.count():
+            self.nav.setCurrentRow(0)
+
+        central = QWidget()
+        row = QHBoxLayout(central)
+        row.setContentsMargins(0, 0, 0, 0)
+        row.setSpacing(0)
+        row.addWidget(self.nav)
+        row.addWidget(self.stack, 1)
+        self.setCentralWidget(central)
+
+        self.log_dock = LogDock(ctx.log, self)
+        self.addDockWidget(Qt.DockWidgetArea.BottomDockWidgetArea, self.log_dock)
+        self.resizeDocks([self.log_dock], [120], Qt.Orientation.Vertical)
+
+        self._make_actions()
+        ctx.bridge.started.connect(self._on_started)
+        ctx.bridge.failed.connect(self._on_failed)
+        ctx.bridge.finished.connect(self._on_finished)
+        self.geometry_restored = False
+        if restore_geometry:
+            self._restore_geometry()
+        else:
+            self.resize(*DEFAULT_SIZE)
+
+    # ------------------------------------------------------------------- pages
+    def _add_page(self, spec: PageSpec) -> None:
+        try:
+            widget = spec.factory(self.ctx)
+        except Exception as exc:
+            message = f"{type(exc).__name__}: {exc}"
+            self.ctx.log.error(f"page {spec.title!r}: {message}")
+            widget = _error_page(spec.title, traceback.format_exc())
+        widget.setObjectName(widget.objectName() or f"page_{spec.title.lower()}")
+        item = QListWidgetItem(page_icon(spec.title), spec.title)
+        if spec.tooltip:
+            item.setToolTip(spec.tooltip)
+        item.setSizeHint(QSize(140, 34))
+        self.nav.addItem(item)
+        self.stack.addWidget(widget)
+        self.pages[spec.title] = widget
+
+    def page(self, title: str) -> QWidget:
+        return self.pages[title]
+
+    def show_page(self, title: str) -> None:
+        self.nav.setCurrentRow(list(self.pages).index(title))
+
+    def _make_actions(self) -> None:
+        toggle_log = self.log_dock.toggleViewAction()
+        toggle_log.setShortcut(QKeySequence("Ctrl+L"))
+        quit_action = QAction("Quit", self)
+        quit_action.setShortcut(QKeySequence.StandardKey.Quit)
+        quit_action.triggered.connect(self.close)
+        view_menu = self.menuBar().addMenu("&View")
+        view_menu.addAction(toggle_log)
+        file_menu = self.menuBar().addMenu("&File")
+        file_menu.addAction(quit_action)
+        # File before View in the bar
+        self.menuBar().clear()
+        self.menuBar().addMenu(file_menu)
+        self.menuBar().addMenu(view_menu)
+
+    # ------------------------------------------------------------- status bar
+    def show_status(self, message: str, level: LogLevel = LogLevel.INFO) -> None:
+        self.status_label.setStyleSheet(STATUS_STYLES[level])
+        self.status_label.setText(message)
+        self.status_label.setToolTip(message)
+
+    def status_text(self) -> str:
+        return self.status_label.text()
+
+    @Slot(object)
+    def _on_log_entry(self, entry: object) -> None:
+        assert isinstance(entry, LogEntry)
+        if entry.level >= LogLevel.INFO:
+            self.show_status(entry.message, entry.level)
+
+    @Slot()
+    def _on_started(self) -> None:
+        info = self.ctx.bridge.run_info
+        if info is not None:
+            self.engine_label.setText(f"Engine running · {info.tracker_name} · {info.source_name}")
+
+    @Slot(str)
+    def _on_failed(self, message: str) -> None:
+        self.ctx.log.error(f"engine stopped: {message}", origin="engine")
+
+    @Slot()
+    def _on_finished(self) -> None:
+        self.engine_label.setText("Engine idle")
+
+    # ----------------------------------------------------------- persistence
+    def _restore_geometry(self) -> None:
+        geometry = self.ctx.settings.value("window/geometry")
+        state = self.ctx.settings.value("window/state")
+        if isinstance(geometry, QByteArray | bytes) and self.restoreGeometry(geometry):
+            self.geometry_restored = True
+            if isinstance(state, QByteArray | bytes):
+                self.restoreState(state)
+        else:
+            self.resize(*DEFAULT_SIZE)
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        self.ctx.settings.setValue("window/geometry", self.saveGeometry())
+        self.ctx.settings.setValue("window/state", self.saveState())
+        self.ctx.shutdown()
+        super().closeEvent(event)

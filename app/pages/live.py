@@ -1,0 +1,500 @@
+"""The Live page: pick a source and a tracker, start/stop, watch the image, poses and quality.
+
+Arrival and display are separate (STYLE.md): ``result_ready`` only stores the latest record
+and appends a few numbers to the plot buffers; a 30 Hz ``QTimer`` redraws the image, the
+overlays, the plots and the read-outs when something new arrived. The window therefore stays
+responsive however fast the engine runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import statistics
+from collections import deque
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import Qt, QTimer, Slot
+from PySide6.QtGui import QKeySequence, QShortcut
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFrame,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QScrollArea,
+    QSizePolicy,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
+
+import engine.trackers as trackers
+from app.context import AppContext
+from app.main import icon
+from app.pages import PageSpec
+from engine.loop import FrameRecord
+from engine.trackers.base import Overlay, TrackState
+from widgets.image_view import ImageView
+from widgets.param_form import ParamForm
+from widgets.pose_plots import PosePlots, ResidualPlots
+from widgets.source_picker import SourceKind, SourcePicker
+from widgets.status_light import StatusLight
+
+DEFAULT_SOURCE = "synthetic:frames=100000,presenter=1,path=rail"
+REDRAW_HZ = 30
+
+
+def _readout(caption: str, tooltip: str) -> tuple[QLabel, QLabel]:
+    cap = QLabel(caption)
+    cap.setObjectName("readout_caption")
+    val = QLabel("–")
+    val.setObjectName("readout")
+    val.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+    val.setToolTip(tooltip)
+    cap.setToolTip(tooltip)
+    return cap, val
+
+
+class LivePage(QWidget):
+    """Source + tracker pickers, start/stop, live image, pose and residual plots, parameters."""
+
+    def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setObjectName("page_live")
+        self.ctx = ctx
+        self.bridge = ctx.bridge
+        self._latest: FrameRecord | None = None
+        self._dirty = False
+        self._latency_ms: deque[float] = deque(maxlen=120)
+        self._params_by_tracker: dict[str, Any] = {}
+        self._frames_shown = 0
+        self._lost_since: int | None = None  # frame index where the current loss began
+
+        # ---- controls
+        self.source_picker = SourcePicker()
+        self.source_picker.set_spec(DEFAULT_SOURCE)
+        self.source_picker.set_recent(ctx.recent_files())
+        self.tracker_box = QComboBox()
+        self.tracker_box.setMinimumWidth(170)
+        self.tracker_box.setToolTip("Tracker to run")
+        self._fill_trackers()
+        self.realtime_check = QCheckBox("Real-time")
+        self.realtime_check.setChecked(True)
+        self.realtime_check.setToolTip(
+            "Pace recorded sources to their nominal frame rate (off: as fast as possible)"
+        )
+        self.start_button = QPushButton("Start")
+        self.start_button.setObjectName("start_button")
+        self.start_button.setToolTip("Start tracking (F5)")
+        self.stop_button = QPushButton("Stop")
+        self.stop_button.setObjectName("stop_button")
+        self.stop_button.setToolTip("Stop tracking (Shift+F5)")
+        self.stop_button.setEnabled(False)
+        self.start_button.setIcon(icon("icons/start.svg"))
+        self.stop_button.setIcon(icon("icons/stop.svg"))
+        for b in (self.start_button, self.stop_button):
+            b.setMinimumWidth(84)
+
+        top = QHBoxLayout()
+        top.setSpacing(8)
+        source_label = QLabel("Source")
+        source_label.setObjectName("readout_caption")
+        tracker_label = QLabel("Tracker")
+        tracker_label.setObjectName("readout_caption")
+        top.addWidget(source_label)
+        top.addWidget(self.source_picker, 1)
+        top.addSpacing(8)
+        top.addWidget(tracker_label)
+        top.addWidget(self.tracker_box)
+        top.addWidget(self.realtime_check)
+        top.addSpacing(8)
+        top.addWidget(self.start_button)
+        top.addWidget(self.stop_button)
+
+        # ---- views
+        self.image_view = ImageView()
+        self.image_view.setToolTip(
+            "Live image. Points: green = used, red = rejected (weight); dashed box: ground truth"
+        )
+        self.pose_plots = PosePlots()
+        self.residual_plots = ResidualPlots()
+
+        # ---- side panel: state, read-outs, parameters
+        self.status_light = StatusLight()
+        self.status_light.setMinimumWidth(220)
+        readouts = QGridLayout()
+        readouts.setHorizontalSpacing(10)
+        readouts.setVerticalSpacing(2)
+        specs = [
+            ("fps", "frames/s", "Frames processed per second (smoothed)"),
+            ("latency", "latency (ms)", "Tracker time per frame: last / p95 of the last 120"),
+            ("frame", "frame", "Index of the frame shown / frames in the source"),
+            ("residual", "residual", "Tracker residual of the last frame"),
+            ("inliers", "inliers", "Fraction of points the tracker kept"),
+            ("error", "error vs GT", "Translation error vs ground truth aligned at frame 0"),
+            ("keyframe", "keyframe", "Keyframe in use"),
+        ]
+        self.readouts: dict[str, QLabel] = {}
+        for row, (key, caption, tip) in enumerate(specs):
+            cap, val = _readout(caption, tip)
+            readouts.addWidget(cap, row, 0)
+            readouts.addWidget(val, row, 1)
+            self.readouts[key] = val
+        self.fps_label = self.readouts["fps"]
+        self.latency_label = self.readouts["latency"]
+        self.error_label = QLabel()
+        self.error_label.setObjectName("param_error")
+        self.error_label.setWordWrap(True)
+        self.error_label.setVisible(False)
+        self.error_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+
+        self.param_form = ParamForm()
+        self.reset_button = QPushButton("Reset tracker")
+        self.reset_button.setToolTip("Forget tracker state; the next frame re-initialises")
+        self.reset_button.setEnabled(False)
+        params_box = QGroupBox("Tracker parameters")
+        pb_layout = QVBoxLayout(params_box)
+        scroll = QScrollArea()
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QFrame.Shape.NoFrame)
+        scroll.setWidget(self.param_form)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        pb_layout.addWidget(scroll)
+        pb_layout.addWidget(self.reset_button)
+
+        state_box = QGroupBox("Tracking")
+        sb_layout = QVBoxLayout(state_box)
+        sb_layout.addWidget(self.status_light, 0, Qt.AlignmentFlag.AlignLeft)
+        sb_layout.addLayout(readouts)
+        sb_layout.addWidget(self.error_label)
+
+        side = QWidget()
+        side_layout = QVBoxLayout(side)
+        side_layout.setContentsMargins(0, 0, 0, 0)
+        side_layout.addWidget(state_box)
+        side_layout.addWidget(params_box, 1)
+        side.setMinimumWidth(270)
+        side.setMaximumWidth(380)
+
+        left = QSplitter(Qt.Orientation.Vertical)
+        left.addWidget(self._titled("Camera view", self.image_view))
+        left.addWidget(self._titled("Quality", self.residual_plots))
+        left.setStretchFactor(0, 3)
+        left.setStretchFactor(1, 1)
+        left.setSizes([520, 190])
+        self.main_split = QSplitter(Qt.Orientation.Horizontal)
+        self.main_split.addWidget(left)
+        self.main_split.addWidget(
+            self._titled("Camera pose (solid: estimate, dashed: ground truth)", self.pose_plots)
+        )
+        self.main_split.addWidget(side)
+        self.main_split.setStretchFactor(0, 5)
+        self.main_split.setStretchFactor(1, 4)
+        self.main_split.setStretchFactor(2, 0)
+        self.main_split.setSizes([640, 520, 290])
+        for i in range(3):
+            self.main_split.setCollapsible(i, False)
+
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(8, 8, 8, 4)
+        layout.setSpacing(6)
+        layout.addLayout(top)
+        layout.addWidget(self.main_split, 1)
+
+        # ---- wiring
+        self.start_button.clicked.connect(self.start)
+        self.stop_button.clicked.connect(self.stop)
+        self.reset_button.clicked.connect(self.bridge.reset_tracker)
+        self.tracker_box.currentIndexChanged.connect(self._on_tracker_changed)
+        self.param_form.params_changed.connect(self._on_params_edited)
+        self.param_form.edit_rejected.connect(
+            lambda msg: ctx.log.warning(f"parameter rejected: {msg}")
+        )
+        self.bridge.started.connect(self._on_started)
+        self.bridge.result_ready.connect(self._on_record)
+        self.bridge.failed.connect(self._on_failed)
+        self.bridge.finished.connect(self._on_finished)
+        self.bridge.params_changed.connect(self._on_params_sent)
+        QShortcut(QKeySequence("F5"), self, self.start)
+        QShortcut(QKeySequence("Shift+F5"), self, self.stop)
+
+        self.redraw_timer = QTimer(self)
+        self.redraw_timer.setInterval(int(1000 / REDRAW_HZ))
+        self.redraw_timer.timeout.connect(self.redraw)
+        self.redraw_timer.start()
+        self._on_tracker_changed()
+
+    @staticmethod
+    def _titled(title: str, widget: QWidget) -> QWidget:
+        box = QWidget()
+        layout = QVBoxLayout(box)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(2)
+        label = QLabel(title)
+        label.setObjectName("readout_caption")
+        layout.addWidget(label)
+        layout.addWidget(widget, 1)
+        widget.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
+        return box
+
+    # ----------------------------------------------------------------- config
+    def _fill_trackers(self) -> None:
+        self.tracker_box.blockSignals(True)
+        self.tracker_box.clear()
+        try:
+            specs = trackers.available_trackers()
+            default = trackers.default_tracker_name() if specs else None
+        except Exception as exc:  # a broken tracker module must not take the window down
+            self.ctx.log.error(f"tracker registry: {type(exc).__name__}: {exc}")
+            specs, default = {}, None
+        for name, spec in specs.items():
+            self.tracker_box.addItem(name, name)
+            self.tracker_box.setItemData(
+                self.tracker_box.count() - 1, spec.description, Qt.ItemDataRole.ToolTipRole
+            )
+        if default is not None:
+            self.tracker_box.setCurrentIndex(self.tracker_box.findData(default))
+        self.tracker_box.blockSignals(False)
+
+    @property
+    def tracker_name(self) -> str | None:
+        data = self.tracker_box.currentData()
+        return None if data is None else str(data)
+
+    def configure(
+        self,
+        source: str | None = None,
+        tracker: str | None = None,
+        realtime: bool | None = None,
+    ) -> None:
+        """Pre-select a source spec, a tracker and pacing (used by ``studiotrack gui``)."""
+        if source is not None:
+            self.source_picker.set_spec(source)
+        if tracker is not None:
+            index = self.tracker_box.findData(tracker)
+            if index < 0:
+                self.ctx.log.error(f"unknown tracker {tracker!r}")
+            else:
+                self.tracker_box.setCurrentIndex(index)
+        if realtime is not None:
+            self.realtime_check.setChecked(realtime)
+
+    @Slot()
+    def _on_tracker_changed(self) -> None:
+        name = self.tracker_name
+        if name is None:
+            self.param_form.set_params(None)
+            return
+        params = self._params_by_tracker.get(name)
+        if params is None:
+            try:
+                params = trackers.get_spec(name).params_cls()
+            except Exception as exc:
+                self.ctx.log.error(f"tracker {name!r} parameters: {type(exc).__name__}: {exc}")
+                params = None
+        self.param_form.set_params(params)
+
+    @Slot(object)
+    def _on_params_edited(self, params: object) -> None:
+        name = self.tracker_name
+        if name is not None:
+            self._params_by_tracker[name] = params
+        info = self.bridge.run_info
+        if self.bridge.is_running and info is not None and info.tracker_name == name:
+            self.bridge.set_params(params)
+            self.ctx.log.info(f"{name}: parameters applied from the next frame")
+
+    # ---------------------------------------------------------------- control
+    @Slot()
+    def start(self) -> None:
+        name = self.tracker_name
+        if name is None:
+            self.ctx.log.error("no tracker available")
+            return
+        spec = self.source_picker.spec()
+        if self.source_picker.kind in (SourceKind.FOLDER, SourceKind.VIDEO) and spec:
+            self.ctx.add_recent_file(spec)
+            self.source_picker.set_recent(self.ctx.recent_files())
+        self.pose_plots.clear_data()
+        self.residual_plots.clear_data()
+        self._latency_ms.clear()
+        self._latest = None
+        self._frames_shown = 0
+        self._lost_since = None
+        self.error_label.setVisible(False)
+        self.status_light.set_state(None, "STARTING")
+        self.ctx.log.info(f"starting {name} on {spec or '(no source)'}")
+        self.bridge.start(
+            spec, name, params=self.param_form.params, realtime=self.realtime_check.isChecked()
+        )
+        self._update_controls()
+
+    @Slot()
+    def stop(self) -> None:
+        if self.bridge.is_running:
+            self.bridge.stop()
+            self.ctx.log.info("tracking stopped")
+        self._update_controls()
+
+    def _update_controls(self) -> None:
+        running = self.bridge.is_running
+        self.start_button.setEnabled(not running)
+        self.stop_button.setEnabled(running)
+        self.reset_button.setEnabled(running)
+        self.tracker_box.setEnabled(not running)
+        self.realtime_check.setEnabled(not running)
+        self.source_picker.setEnabled(not running)
+
+    # ---------------------------------------------------------- engine events
+    @Slot()
+    def _on_started(self) -> None:
+        info = self.bridge.run_info
+        if info is not None:
+            self.ctx.log.info(f"tracking {info.source_name} with {info.tracker_name}")
+            self.status_light.set_state(None, "INITIALIZING")
+            self._show_run_params(info.tracker_name, info.params)
+        self._update_controls()
+
+    def _show_run_params(self, tracker_name: str, params: object) -> None:
+        """Keep the form in step with what the engine runs (another page may start it)."""
+        index = self.tracker_box.findData(tracker_name)
+        if index < 0:
+            return
+        if index != self.tracker_box.currentIndex():
+            self.tracker_box.setCurrentIndex(index)  # reloads the form for that tracker
+        if (
+            params is not None
+            and dataclasses.is_dataclass(params)
+            and not isinstance(params, type)
+        ):
+            self._params_by_tracker[tracker_name] = params
+            if params != self.param_form.params:
+                self.param_form.set_params(params)
+
+    @Slot(object)
+    def _on_params_sent(self, params: object) -> None:
+        info = self.bridge.run_info
+        if info is not None and params is not self.param_form.params:
+            self._show_run_params(info.tracker_name, params)
+
+    @Slot(object)
+    def _on_record(self, record: object) -> None:
+        assert isinstance(record, FrameRecord)
+        self._latest = record
+        self._dirty = True
+        self._latency_ms.append(record.process_ms)
+        frame, result = record.frame, record.result
+        self._log_loss_and_recovery(record)
+        err = self.pose_plots.append(frame.timestamp_s, result.T_world_cam, frame.gt_T_world_cam)
+        self.residual_plots.append(frame.timestamp_s, result.residual, result.inlier_fraction, err)
+
+    def _log_loss_and_recovery(self, record: FrameRecord) -> None:
+        """One log line when tracking is lost and one when it is good again (no flood)."""
+        state, index = record.result.state, record.frame.index
+        if state is TrackState.LOST and self._lost_since is None:
+            self._lost_since = index
+            self.ctx.log.warning(f"tracking LOST at frame {index}", origin="tracker")
+        elif state.is_good and self._lost_since is not None:
+            frames = index - self._lost_since
+            self.ctx.log.info(
+                f"tracking recovered at frame {index} after {frames} frames", origin="tracker"
+            )
+            self._lost_since = None
+
+    @Slot(str)
+    def _on_failed(self, message: str) -> None:
+        self.error_label.setText(message)
+        self.error_label.setToolTip(message)
+        self.error_label.setVisible(True)
+
+    @Slot()
+    def _on_finished(self) -> None:
+        self.redraw()
+        error = self.bridge.last_error
+        self.status_light.set_state(None, "ERROR" if error else "STOPPED")
+        if error is None:
+            self.ctx.log.info(f"run ended after {self.bridge.frames_received} frames")
+        self._update_controls()
+
+    # ---------------------------------------------------------------- display
+    @Slot()
+    def redraw(self) -> None:
+        """Draw the latest record (called by the display timer; cheap when nothing new)."""
+        record = self._latest
+        if not self._dirty or record is None:
+            return
+        self._dirty = False
+        self._frames_shown += 1
+        frame, result = record.frame, record.result
+        self.image_view.set_image(frame.color_bgr)
+        overlay = result.overlay
+        if result.box_xywh is not None and (overlay is None or not overlay.boxes_xywh):
+            base = overlay if overlay is not None else Overlay()
+            overlay = Overlay(
+                points_uv=base.points_uv,
+                point_weights=base.point_weights,
+                boxes_xywh=(result.box_xywh,),
+                box_labels=(record.tracker_name,),
+                polylines_uv=base.polylines_uv,
+                crosshair_uv=base.crosshair_uv,
+            )
+        self.image_view.set_overlay(overlay, frame.gt_box_xywh)
+        self.image_view.set_info(self._info_text(record))
+        self.pose_plots.redraw()
+        self.residual_plots.redraw()
+        if self.bridge.is_running or record.result.state is not None:
+            self.status_light.set_state(result.state)
+        self._update_readouts(record)
+
+    def _info_text(self, record: FrameRecord) -> str:
+        frame, result = record.frame, record.result
+        parts = [f"frame {frame.index}", f"t = {frame.timestamp_s:.2f} s"]
+        ov = result.overlay
+        if ov is not None and ov.points_uv is not None and len(ov.points_uv):
+            n = len(ov.points_uv)
+            if ov.point_weights is not None and len(ov.point_weights):
+                used = float(np.mean(np.asarray(ov.point_weights) >= 0.5)) * 100.0
+                parts.append(f"{n} points, {used:.0f} % used")
+            else:
+                parts.append(f"{n} points")
+        return "  ·  ".join(parts)
+
+    def _update_readouts(self, record: FrameRecord) -> None:
+        result = record.result
+        self.readouts["fps"].setText(f"{record.fps:6.1f}")
+        lat = list(self._latency_ms)
+        p95 = float(np.percentile(lat, 95)) if len(lat) >= 2 else record.process_ms
+        self.readouts["latency"].setText(f"{record.process_ms:6.1f} / {p95:.1f}")
+        total = f" / {record.source_len}" if record.source_len else ""
+        self.readouts["frame"].setText(f"{record.frame.index}{total}")
+        self.readouts["residual"].setText(
+            "–" if result.residual is None else f"{result.residual:.4g}"
+        )
+        self.readouts["inliers"].setText(
+            "–" if result.inlier_fraction is None else f"{100 * result.inlier_fraction:.1f} %"
+        )
+        _, err = self.pose_plots.err.data()
+        finite = err[np.isfinite(err[:, 0]), 0] if len(err) else np.empty(0)
+        self.readouts["error"].setText(f"{1000 * finite[-1]:.1f} mm" if len(finite) else "–")
+        self.readouts["keyframe"].setText(
+            "–" if result.keyframe_id is None else str(result.keyframe_id)
+        )
+
+    def latency_median_ms(self) -> float | None:
+        return statistics.median(self._latency_ms) if self._latency_ms else None
+
+
+def _factory(ctx: AppContext) -> QWidget:
+    return LivePage(ctx)
+
+
+PAGE = PageSpec(
+    title="Live",
+    order=0,
+    factory=_factory,
+    tooltip="Track a source live: image, pose, quality and tracker parameters",
+)

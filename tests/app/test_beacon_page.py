@@ -1,0 +1,88 @@
+"""The Beacons page runs the simulator through beacon-slam and edits the layout."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QSettings
+
+from app.context import AppContext
+from app.pages import discover_pages
+from app.pages.beacons import BeaconsPage, ellipse_points
+from engine.beacons.simulator import PAPER_LAYOUT
+
+
+@pytest.fixture
+def page(qtbot, tmp_path: Path) -> BeaconsPage:  # type: ignore[no-untyped-def]
+    ctx = AppContext(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    w = BeaconsPage(ctx)
+    qtbot.addWidget(w)
+    w.resize(1280, 800)
+    yield w
+    w.bridge.stop()
+
+
+def test_page_is_discovered() -> None:
+    assert any(p.title == "Beacons" for p in discover_pages())
+
+
+def test_page_runs_the_simulator(qtbot, page: BeaconsPage) -> None:  # type: ignore[no-untyped-def]
+    page.steps_spin.setValue(40)
+    page.fps_spin.setValue(400.0)
+    page.outlier_spin.setValue(0.05)
+    with qtbot.waitSignal(page.bridge.finished, timeout=20000):
+        page.start_button.click()
+        qtbot.waitUntil(lambda: page.records_seen >= 5, timeout=10000)
+        # a live edit of the particle count reaches the tracker on the next step
+        form = page.param_form
+        new = dataclasses.replace(form.params, n_particles=90, map_adjust_p=0.1)
+        form.set_params(new)
+        with qtbot.waitSignal(page.bridge.params_changed, timeout=2000):
+            form.params_changed.emit(new)
+    assert page.records_seen == 41
+    assert len(page.est_path) == len(page.true_path) == len(page.errors_m) == 41
+    page._dirty = True
+    page._redraw()
+    assert page.particles_item.data.shape[0] == 90  # the new particle count was applied
+    assert float(np.sqrt(np.mean(np.square(page.errors_m)))) < 3.0
+    assert "Finished" in page.status_label.text()
+    assert page.start_button.isEnabled()
+    assert not page.stop_button.isEnabled()
+    page.grab().save(str(Path(page._layout_dir) / "beacons_page.png"))
+
+
+def test_stop_ends_the_run(qtbot, page: BeaconsPage) -> None:  # type: ignore[no-untyped-def]
+    page.steps_spin.setValue(100000)
+    page.fps_spin.setValue(50.0)
+    page.start_button.click()
+    qtbot.waitUntil(lambda: page.records_seen >= 2, timeout=10000)
+    with qtbot.waitSignal(page.bridge.finished, timeout=10000):
+        page.stop_button.click()
+    assert not page.bridge.is_running
+
+
+def test_layout_editing_import_export(page: BeaconsPage, tmp_path: Path) -> None:
+    assert page.beacon_layout() == PAPER_LAYOUT
+    page._targets["A"].setPos((3.0, 4.0))  # what a mouse drag does
+    bid = page.add_beacon()
+    assert bid == "E"
+    assert page.beacon_layout()["A"] == (3.0, 4.0)
+    out = tmp_path / "lay.csv"
+    page.export_layout(out)
+    page.set_layout(PAPER_LAYOUT)
+    page.import_layout(out)
+    assert page.beacon_layout()["E"] == (0.0, 8.0)
+    assert len(page.beacon_layout()) == 5
+    assert "layout=" in page.source_spec()
+    page.import_layout(tmp_path / "missing.json")
+    assert "import failed" in page.status_label.text()
+    page.remove_last_beacon()
+    assert "E" not in page.beacon_layout()
+
+
+def test_ellipse_points_radii() -> None:
+    pts = ellipse_points(np.array([1.0, 2.0]), np.diag([4.0, 1.0]), n_sigma=1.0, n=4)
+    np.testing.assert_allclose(np.abs(pts - [1.0, 2.0]).max(axis=0), [2.0, 1.0], atol=1e-9)

@@ -1,0 +1,272 @@
+"""Source picker: built-in studio (with options), folder, video file or camera -> a spec string.
+
+The spec strings are those of :func:`engine.sources.open_source`:
+``synthetic:frames=600,seed=3,presenter=1,path=rail``, a TUM/OTB folder path, a video file path,
+``camera:N``. The picker does not open anything; the engine thread does (errors come back
+through the bridge).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from PySide6.QtCore import QStringListModel, Signal, Slot
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QCompleter,
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSpinBox,
+    QStackedWidget,
+    QWidget,
+)
+
+STUDIO_PATHS = ("rail", "pan", "handheld", "static")
+VIDEO_FILTER = "Video files (*.mp4 *.avi *.mov *.mkv *.m4v);;All files (*)"
+
+
+class SourceKind:
+    STUDIO = "studio"
+    FOLDER = "folder"
+    VIDEO = "video"
+    CAMERA = "camera"
+
+
+KIND_TITLES = {
+    SourceKind.STUDIO: "Built-in studio",
+    SourceKind.FOLDER: "Folder (TUM / OTB)",
+    SourceKind.VIDEO: "Video file",
+    SourceKind.CAMERA: "Camera",
+}
+
+
+def parse_synthetic(spec: str) -> dict[str, str]:
+    """Options of a ``synthetic:...`` spec (lenient: malformed items are ignored here)."""
+    _, _, rest = spec.partition(":")
+    out: dict[str, str] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, sep, value = item.partition("=")
+        if sep and key.strip():
+            out[key.strip()] = value.strip()
+    return out
+
+
+def _row(*widgets: QWidget, stretch_last: bool = False) -> QWidget:
+    w = QWidget()
+    layout = QHBoxLayout(w)
+    layout.setContentsMargins(0, 0, 0, 0)
+    layout.setSpacing(6)
+    for i, child in enumerate(widgets):
+        layout.addWidget(child, 1 if stretch_last and i == len(widgets) - 1 else 0)
+    if not stretch_last:
+        layout.addStretch(1)
+    return w
+
+
+class _PathEditor(QWidget):
+    """Line edit with recent-path completion and a Browse button."""
+
+    edited = Signal()
+
+    def __init__(self, placeholder: str, pick_dir: bool, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.pick_dir = pick_dir
+        self.line = QLineEdit()
+        self.line.setPlaceholderText(placeholder)
+        self.line.setClearButtonEnabled(True)
+        self._model = QStringListModel()
+        completer = QCompleter(self._model, self)
+        completer.setFilterMode(completer.filterMode().MatchContains)
+        self.line.setCompleter(completer)
+        self.browse = QPushButton("Browse…")
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(6)
+        layout.addWidget(self.line, 1)
+        layout.addWidget(self.browse)
+        self.browse.clicked.connect(self._browse)
+        self.line.editingFinished.connect(self.edited)
+
+    def set_recent(self, paths: Sequence[str]) -> None:
+        self._model.setStringList(list(paths))
+
+    @Slot()
+    def _browse(self) -> None:
+        start = self.line.text() or str(Path.home())
+        if self.pick_dir:
+            path = QFileDialog.getExistingDirectory(self, "Choose a TUM or OTB folder", start)
+        else:
+            path, _ = QFileDialog.getOpenFileName(self, "Choose a video file", start, VIDEO_FILTER)
+        if path:
+            self.line.setText(path)
+            self.edited.emit()
+
+
+class SourcePicker(QWidget):
+    """Choose the input; ``spec()`` gives the source spec, ``spec_changed`` fires on edits."""
+
+    spec_changed = Signal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.kind_box = QComboBox()
+        for kind, title in KIND_TITLES.items():
+            self.kind_box.addItem(title, kind)
+        self.kind_box.setToolTip("Where frames come from")
+        self.stack = QStackedWidget()
+
+        # built-in studio
+        self.path_box = QComboBox()
+        for p in STUDIO_PATHS:
+            self.path_box.addItem(p, p)
+        self.path_box.setToolTip(
+            "Camera path: rail = 3.3 m dolly back and forth, pan = pan sweep, "
+            "handheld = hand-held wobble"
+        )
+        self.presenter_check = QCheckBox("presenter")
+        self.presenter_check.setChecked(True)
+        self.presenter_check.setToolTip("A presenter walks through the set (occludes it)")
+        self.ball_check = QCheckBox("ball")
+        self.ball_check.setToolTip("The red target ball moves on a circle")
+        self.seed_spin = QSpinBox()
+        self.seed_spin.setRange(0, 1_000_000)
+        self.seed_spin.setPrefix("seed ")
+        self.seed_spin.setToolTip("Random seed of the studio (deterministic)")
+        self.frames_spin = QSpinBox()
+        self.frames_spin.setRange(1, 10_000_000)
+        self.frames_spin.setValue(100_000)
+        self.frames_spin.setSuffix(" frames")
+        self.frames_spin.setToolTip("Length of the generated sequence")
+        self.frames_spin.setGroupSeparatorShown(True)
+        self.extra_line = QLineEdit()
+        self.extra_line.setPlaceholderText("more options, e.g. noise=1")
+        self.extra_line.setToolTip("Further key=value options of the studio, comma separated")
+        path_label = QLabel("path")
+        self.studio_page = _row(
+            path_label,
+            self.path_box,
+            self.presenter_check,
+            self.ball_check,
+            self.seed_spin,
+            self.frames_spin,
+            self.extra_line,
+            stretch_last=True,
+        )
+        # folder / video / camera
+        self.folder_edit = _PathEditor("TUM RGB-D or OTB folder", pick_dir=True)
+        self.video_edit = _PathEditor("video file (.mp4, .avi, ...)", pick_dir=False)
+        self.camera_spin = QSpinBox()
+        self.camera_spin.setRange(0, 63)
+        self.camera_spin.setPrefix("camera ")
+        self.camera_spin.setToolTip("OpenCV camera index")
+        self.camera_page = _row(self.camera_spin)
+        for page in (self.studio_page, self.folder_edit, self.video_edit, self.camera_page):
+            self.stack.addWidget(page)
+
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(6)
+        layout.addWidget(self.kind_box)
+        layout.addWidget(self.stack, 1)
+
+        self.kind_box.currentIndexChanged.connect(self._on_kind)
+        for sig in (
+            self.path_box.currentIndexChanged,
+            self.presenter_check.toggled,
+            self.ball_check.toggled,
+            self.seed_spin.valueChanged,
+            self.frames_spin.valueChanged,
+            self.extra_line.editingFinished,
+            self.folder_edit.edited,
+            self.video_edit.edited,
+            self.camera_spin.valueChanged,
+        ):
+            sig.connect(self._emit)
+
+    # ------------------------------------------------------------------- spec
+    @property
+    def kind(self) -> str:
+        return str(self.kind_box.currentData())
+
+    def set_kind(self, kind: str) -> None:
+        self.kind_box.setCurrentIndex(self.kind_box.findData(kind))
+
+    def spec(self) -> str:
+        kind = self.kind
+        if kind == SourceKind.STUDIO:
+            opts = {
+                "frames": str(self.frames_spin.value()),
+                "seed": str(self.seed_spin.value()),
+                "presenter": "1" if self.presenter_check.isChecked() else "0",
+                "path": str(self.path_box.currentData()),
+            }
+            if self.ball_check.isChecked():
+                opts["ball"] = "1"
+            extra = parse_synthetic("synthetic:" + self.extra_line.text())
+            if "cycles" in extra and "cycle_s" in extra:
+                del opts["frames"]  # the studio accepts at most two of frames/cycles/cycle_s
+            opts.update(extra)
+            return "synthetic:" + ",".join(f"{k}={v}" for k, v in opts.items())
+        if kind == SourceKind.FOLDER:
+            return self.folder_edit.line.text().strip()
+        if kind == SourceKind.VIDEO:
+            return self.video_edit.line.text().strip()
+        return f"camera:{self.camera_spin.value()}"
+
+    def set_spec(self, spec: str) -> None:
+        """Show ``spec`` (any string :func:`engine.sources.open_source` accepts)."""
+        spec = spec.strip()
+        self.blockSignals(True)
+        try:
+            kind, _, rest = spec.partition(":")
+            if kind == "synthetic":
+                opts = parse_synthetic(spec)
+                path = opts.pop("path", "rail")
+                if self.path_box.findData(path) < 0:
+                    self.path_box.addItem(path, path)
+                self.path_box.setCurrentIndex(self.path_box.findData(path))
+                self.presenter_check.setChecked(opts.pop("presenter", "0") not in ("0", "false"))
+                self.ball_check.setChecked(opts.pop("ball", "0") not in ("0", "false"))
+                self.seed_spin.setValue(_int_or(opts.pop("seed", "0"), 0))
+                self.frames_spin.setValue(_int_or(opts.pop("frames", "300"), 300))
+                self.extra_line.setText(",".join(f"{k}={v}" for k, v in opts.items()))
+                self.set_kind(SourceKind.STUDIO)
+            elif kind == "camera":
+                self.camera_spin.setValue(_int_or(rest or "0", 0))
+                self.set_kind(SourceKind.CAMERA)
+            elif Path(spec).suffix.lower() in (".mp4", ".avi", ".mov", ".mkv", ".m4v"):
+                self.video_edit.line.setText(spec)
+                self.set_kind(SourceKind.VIDEO)
+            else:
+                self.folder_edit.line.setText(spec)
+                self.set_kind(SourceKind.FOLDER)
+        finally:
+            self.blockSignals(False)
+        self._emit()
+
+    def set_recent(self, paths: Sequence[str]) -> None:
+        """Offer recently used folders/files for completion."""
+        video_suffixes = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
+        self.video_edit.set_recent([p for p in paths if p.lower().endswith(video_suffixes)])
+        self.folder_edit.set_recent([p for p in paths if not p.lower().endswith(video_suffixes)])
+
+    @Slot()
+    def _on_kind(self) -> None:
+        self.stack.setCurrentIndex(self.kind_box.currentIndex())
+        self._emit()
+
+    @Slot()
+    def _emit(self) -> None:
+        self.spec_changed.emit(self.spec())
+
+
+def _int_or(text: str, default: int) -> int:
+    try:
+        return int(float(text))
+    except ValueError:
+        return default
