@@ -1,0 +1,294 @@
+"""``synthetic:key=value,...`` - the built-in virtual studio as a frame source.
+
+Example: ``synthetic:frames=600,seed=3,presenter=1,path=rail``. Options (defaults):
+
+=====================  ==========================================================================
+frames (300)           number of frames; default with ``cycles``: cycles x cycle_s x fps
+seed (0)               textures, hand-held wobble and sensor noise
+path (rail)            rail | pan | handheld | static (see :mod:`engine.studio.paths`)
+cycles                 number of path cycles (rail: there and back) in ``frames``
+cycle_s (6)            seconds per cycle (give at most two of frames, cycles, cycle_s)
+fps (30)               frame rate (timestamps are index / fps)
+width, height          image size (640x480); f = 525 px is scaled with it
+distortion (0)         1: a real Kinect's lens distortion (TUM freiburg1 coefficients)
+presenter (0)          1: the walking presenter
+presenter_mode (walk)  walk | still | leave (walks out of view and back)
+presenter_start (0)    first frame with the presenter in the studio (walks in from x = -4.6)
+presenter_last_cycles  presenter only during the last N cycles (sets presenter_start)
+presenter_leave        leave mode: frame the presenter starts walking out (frames/3)
+presenter_return       leave mode: frame the presenter starts walking back (2 frames/3)
+presenter_speed (0.9)  walking speed, m/s
+presenter_xmin/xmax    walk mode range along x, m (-2.6, 2.6; static camera -1.1, 1.1)
+presenter_x (0)        still/leave mode standing position along x, m
+presenter_y (2.4)      distance of the presenter's line from the rail (world y), m
+ball (0)               1: the red target ball on a circle
+ball_period_s (30)     ball circle period, s
+ball_circle_m (1.0)    ball circle radius, m
+ball_radius_m (0.1)    ball radius, m
+ball_cx/cy/cz          centre of the ball's circle, m (0.6, 2.6, 1.2)
+noise (0)              depth noise as a multiple of the Kinect model (1 = Kinect v1)
+dropouts (0)           1: depth holes (2 % of the image + edge dropouts); or a fraction < 1
+color_noise (0)        colour noise std (grey levels)
+vignette (0)           vignetting strength 0..1 (cos^4 law)
+blur (0)               Gaussian lens blur of the colour image, sigma in pixels (e.g. 0.6)
+occluder (0)           1: a grey panel (0.7 x 1.3 m) moving 1.6 m in front of the rail
+cover_start            lens covered (dark image, no depth) from this frame ...
+cover_frames (20)      ... for this many frames (loss-and-relock tests)
+threads (1)            renderer threads per frame (0: all cores; 1 is steadier on a busy CPU)
+=====================  ==========================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from typing import Any
+
+from engine.camera import Intrinsics
+from engine.errors import SourceError
+from engine.frames import Frame
+from engine.sources.base import Source
+
+PATHS = ("rail", "pan", "handheld", "static")
+PRESENTER_MODES = ("walk", "still", "leave")
+
+
+def _int(lo: int, hi: int | None = None) -> Callable[[str], int]:
+    def parse(s: str) -> int:
+        v = int(s)
+        if v < lo or (hi is not None and v > hi):
+            raise ValueError(f"expected an integer in [{lo}, {hi if hi is not None else 'inf'}]")
+        return v
+
+    return parse
+
+
+def _float(lo: float, hi: float | None = None, open_lo: bool = False) -> Callable[[str], float]:
+    def parse(s: str) -> float:
+        v = float(s)
+        bad = not math.isfinite(v) or (v <= lo if open_lo else v < lo)
+        if bad or (hi is not None and v > hi):
+            lo_b = "(" if open_lo else "["
+            raise ValueError(
+                f"expected a number in {lo_b}{lo}, {hi if hi is not None else 'inf'}]"
+            )
+        return v
+
+    return parse
+
+
+def _choice(*names: str) -> Callable[[str], str]:
+    def parse(s: str) -> str:
+        if s not in names:
+            raise ValueError(f"expected one of {', '.join(names)}")
+        return s
+
+    return parse
+
+
+def _bool(s: str) -> bool:
+    if s.lower() in ("1", "true", "yes", "on"):
+        return True
+    if s.lower() in ("0", "false", "no", "off"):
+        return False
+    raise ValueError("expected 0 or 1")
+
+
+def _dropouts(s: str) -> float:
+    v = float(s)
+    if not math.isfinite(v) or v < 0 or v > 1:
+        raise ValueError("expected 0, 1 or a fraction in (0, 1)")
+    return 0.02 if v == 1.0 else v
+
+
+OPTIONS: dict[str, Callable[[str], Any]] = {
+    "frames": _int(1),
+    "seed": _int(0),
+    "path": _choice(*PATHS),
+    "cycles": _float(0.0, open_lo=True),
+    "cycle_s": _float(0.0, open_lo=True),
+    "fps": _float(0.0, 1000.0, open_lo=True),
+    "width": _int(16, 4096),
+    "height": _int(16, 4096),
+    "distortion": _bool,
+    "presenter": _bool,
+    "presenter_mode": _choice(*PRESENTER_MODES),
+    "presenter_start": _int(0),
+    "presenter_last_cycles": _float(0.0, open_lo=True),
+    "presenter_leave": _int(0),
+    "presenter_return": _int(0),
+    "presenter_speed": _float(0.0, 10.0, open_lo=True),
+    "presenter_xmin": _float(-4.5, 4.5),
+    "presenter_xmax": _float(-4.5, 4.5),
+    "presenter_x": _float(-4.5, 4.5),
+    "presenter_y": _float(0.5, 4.2),
+    "ball": _bool,
+    "ball_period_s": _float(0.0, open_lo=True),
+    "ball_circle_m": _float(0.0, 3.0),
+    "ball_radius_m": _float(0.0, 1.0, open_lo=True),
+    "ball_cx": _float(-4.5, 4.5),
+    "ball_cy": _float(-2.5, 4.2),
+    "ball_cz": _float(0.0, 3.5),
+    "noise": _float(0.0, 100.0),
+    "dropouts": _dropouts,
+    "color_noise": _float(0.0, 100.0),
+    "vignette": _float(0.0, 1.0),
+    "blur": _float(0.0, 10.0),
+    "occluder": _bool,
+    "cover_start": _int(0),
+    "cover_frames": _int(0),
+    "threads": _int(0, 256),
+}
+
+
+def parse_synthetic_options(opts: dict[str, str]) -> dict[str, Any]:
+    """Validate and convert option strings; SourceError names the bad option."""
+    out: dict[str, Any] = {}
+    for key, raw in opts.items():
+        if key not in OPTIONS:
+            raise SourceError(
+                f"synthetic: unknown option {key!r} (known: {', '.join(sorted(OPTIONS))})"
+            )
+        try:
+            out[key] = OPTIONS[key](raw)
+        except ValueError as exc:
+            msg = str(exc)
+            if msg.startswith(("invalid literal", "could not convert")):
+                msg = "not a number"
+            raise SourceError(f"synthetic: option {key}={raw!r}: {msg}") from None
+    return out
+
+
+def config_from_options(opts: dict[str, str]) -> Any:
+    """Build a :class:`engine.studio.sim.StudioConfig` from ``key=value`` strings."""
+    from engine.studio.ball import BallPath
+    from engine.studio.paths import CameraPath
+    from engine.studio.presenter import PresenterScript
+    from engine.studio.sim import StudioConfig
+
+    o = parse_synthetic_options(opts)
+    fps = o.get("fps", 30.0)
+    given = [k for k in ("frames", "cycles", "cycle_s") if k in o]
+    if len(given) == 3:
+        raise SourceError("synthetic: give at most two of frames, cycles, cycle_s")
+    if "frames" in o and "cycles" in o:
+        cycle_s = o["frames"] / fps / o["cycles"]
+        frames = o["frames"]
+    else:
+        cycle_s = o.get("cycle_s", 6.0)
+        frames = (
+            o["frames"]
+            if "frames" in o
+            else (max(1, round(o["cycles"] * cycle_s * fps)) if "cycles" in o else 300)
+        )
+    path_kind = o.get("path", "rail")
+    presenter = None
+    if o.get("presenter", False):
+        start = o.get("presenter_start", 0)
+        if "presenter_last_cycles" in o:
+            start = max(0, frames - round(o["presenter_last_cycles"] * cycle_s * fps))
+        wide = path_kind != "static"
+        try:
+            presenter = PresenterScript(
+                mode=o.get("presenter_mode", "walk"),
+                fps=fps,
+                start_frame=start,
+                speed_mps=o.get("presenter_speed", 0.9),
+                x_min_m=o.get("presenter_xmin", -2.6 if wide else -1.1),
+                x_max_m=o.get("presenter_xmax", 2.6 if wide else 1.1),
+                x_still_m=o.get("presenter_x", 0.0),
+                y_m=o.get("presenter_y", 2.4),
+                leave_frame=o.get("presenter_leave", frames // 3),
+                return_frame=o.get("presenter_return", (2 * frames) // 3),
+                # the static camera sees x within +-1.5 m at y = 2.4: 2.6 m is well outside
+                x_out_m=min(4.6, o.get("presenter_x", 0.0) + 2.6) if not wide else 4.6,
+                # appearing mid-sequence: walk in from the left wall rather than pop up
+                enter_from_m=-4.6 if start > 0 else None,
+            )
+        except ValueError as exc:
+            raise SourceError(f"synthetic: presenter options: {exc}") from None
+    else:
+        stray = [k for k in o if k.startswith("presenter_")]
+        if stray:
+            raise SourceError(f"synthetic: option {stray[0]} needs presenter=1")
+    ball = None
+    stray = [k for k in o if k.startswith("ball_")]
+    if stray and not o.get("ball", False):
+        raise SourceError(f"synthetic: option {stray[0]} needs ball=1")
+    if o.get("ball", False):
+        ball = BallPath(
+            centre_m=(o.get("ball_cx", 0.6), o.get("ball_cy", 2.6), o.get("ball_cz", 1.2)),
+            circle_radius_m=o.get("ball_circle_m", 1.0),
+            period_s=o.get("ball_period_s", 30.0),
+            ball_radius_m=o.get("ball_radius_m", 0.1),
+        )
+    return StudioConfig(
+        frames=frames,
+        seed=o.get("seed", 0),
+        fps=fps,
+        width=o.get("width", 640),
+        height=o.get("height", 480),
+        distortion=o.get("distortion", False),
+        path=CameraPath(path_kind, cycle_s, o.get("seed", 0)),
+        presenter=presenter,
+        ball=ball,
+        depth_noise=o.get("noise", 0.0),
+        dropouts=o.get("dropouts", 0.0),
+        color_noise=o.get("color_noise", 0.0),
+        vignette=o.get("vignette", 0.0),
+        blur_px=o.get("blur", 0.0),
+        occluder=o.get("occluder", False),
+        cover_start=o.get("cover_start", -1),
+        cover_frames=o.get("cover_frames", 20 if "cover_start" in o else 0),
+        threads=o.get("threads", 1),
+    )
+
+
+class SyntheticSource(Source):
+    """The built-in virtual studio: RGB-D frames with exact pose, presenter and ball truth."""
+
+    nominal_fps = 30.0
+    live = False
+
+    def __init__(self, config: Any = None) -> None:
+        from engine.studio.sim import Studio, StudioConfig
+
+        self.config = config if config is not None else StudioConfig()
+        self.studio = Studio(self.config)
+        self.nominal_fps = self.config.fps
+        extras = []
+        if self.config.presenter is not None:
+            extras.append(f"presenter {self.config.presenter.mode}")
+        if self.config.ball is not None:
+            extras.append("ball")
+        self.name = (
+            f"built-in studio ({self.config.path.kind}, {self.config.frames} frames"
+            + "".join(f", {e}" for e in extras)
+            + ")"
+        )
+
+    @classmethod
+    def from_options(cls, opts: dict[str, str]) -> SyntheticSource:
+        return cls(config_from_options(opts))
+
+    def with_config(self, **changes: Any) -> SyntheticSource:
+        return SyntheticSource(replace(self.config, **changes))
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return self.studio.intrinsics
+
+    def __len__(self) -> int:
+        return int(self.config.frames)
+
+    def frame(self, index: int, T_world_cam: Any = None) -> Frame:
+        """Random access: frame ``index`` (a pure function of the config and the index);
+        ``T_world_cam`` (4x4) renders it from another camera pose instead of the path's."""
+        if not 0 <= index < len(self):
+            raise SourceError(f"synthetic: frame {index} out of range [0, {len(self)})")
+        return self.studio.frame(index, T_world_cam)
+
+    def frames(self) -> Iterator[Frame]:
+        for i in range(len(self)):
+            yield self.studio.frame(i)

@@ -1,0 +1,255 @@
+"""One studio "shoot": scene + camera path + presenter + ball + sensor -> Frames with truth.
+
+Frames are rendered on demand and are a pure function of (config, index): random access,
+deterministic by seed. ``Frame.extras`` carries the truth:
+
+- ``labels``: uint8 (H, W) map, 0 set, 1 head, 2 torso (+arms), 3 legs (+shoes), 4 ball,
+  5 occluder
+- ``presenter_in_scene`` (bool), ``presenter_box_xywh`` (box of the presenter's visible pixels,
+  also ``Frame.gt_box_xywh``; None when fewer than 0.1 % of the image shows the presenter),
+  ``presenter_part_boxes`` {head, torso, legs: box or None}, ``presenter_pixels`` (int),
+  ``presenter_pos_world`` (feet centre on the floor, m), ``presenter_head_world``
+- ``ball_pos_world``, ``ball_vel_world``, ``ball_acc_world``, ``ball_radius_m``,
+  ``ball_omega_rad_s``, ``ball_center_px`` (projection of the centre, may be outside),
+  ``ball_box_xywh`` (visible pixels) and ``ball_pixels``  (all only with the ball on)
+- ``depth_exact_m``: the noise-free depth (only when noise or dropouts are on)
+- ``occluder_pos_world``, ``occluder_box_xywh``, ``occluder_pixels``, ``occluder_fraction``
+  (only with the occluder: label 5)
+- ``covered``: True while the lens is covered (dark image, depth 0; pose truth unchanged)
+- ``path`` and ``cycle`` (time / cycle period)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import TUM_DEFAULTS, Intrinsics, project
+from engine.frames import Frame, readonly
+from engine.geometry import invert
+from engine.studio import sensor
+from engine.studio.ball import BallPath
+from engine.studio.paths import CameraPath
+from engine.studio.presenter import PresenterScript, body_prims, concat_prims
+from engine.studio.render import Prims, Renderer, label_boxes
+from engine.studio.scene import (
+    BOX,
+    LABEL_BALL,
+    LABEL_HEAD,
+    LABEL_LEGS,
+    LABEL_OCCLUDER,
+    LABEL_TORSO,
+    StudioScene,
+    build_scene,
+)
+
+F64 = NDArray[np.float64]
+Box = tuple[float, float, float, float]
+
+#: Kinect-like camera of the studio at 640x480 (TUM's default ROS calibration)
+KINECT_FX = 525.0
+#: the optional lens distortion: TUM freiburg1's (a real Kinect's) Caltech coefficients
+KINECT_DISTORTION = TUM_DEFAULTS["freiburg1"].dist_k1k2p1p2k3
+
+
+def studio_intrinsics(width: int = 640, height: int = 480, distortion: bool = False) -> Intrinsics:
+    """f = 525 px at 640x480, scaled with the image size; principal point at the centre."""
+    return Intrinsics(
+        fx=KINECT_FX * width / 640.0,
+        fy=KINECT_FX * height / 480.0,
+        cx=(width - 1) / 2.0,
+        cy=(height - 1) / 2.0,
+        width=width,
+        height=height,
+        dist_k1k2p1p2k3=KINECT_DISTORTION if distortion else (0.0, 0.0, 0.0, 0.0, 0.0),
+        depth_scale=5000.0,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class StudioConfig:
+    frames: int = 300
+    seed: int = 0
+    fps: float = 30.0
+    width: int = 640
+    height: int = 480
+    distortion: bool = False
+    path: CameraPath = field(default_factory=CameraPath)
+    presenter: PresenterScript | None = None
+    ball: BallPath | None = None
+    depth_noise: float = 0.0  # multiple of the Kinect noise model
+    dropouts: float = 0.0  # fraction of the image in holes (edge dropouts when > 0)
+    color_noise: float = 0.0  # std in grey levels
+    vignette: float = 0.0  # 0..1
+    blur_px: float = 0.0  # Gaussian lens blur sigma (pixels), softens aliased edges
+    occluder: bool = False  # a grey panel moving close in front of the camera
+    cover_start: int = -1  # lens covered from this frame (dark image, no depth) ...
+    cover_frames: int = 0  # ... for this many frames
+    threads: int = 1  # renderer threads (0: all cores)
+
+
+class Studio:
+    """Renders the frames of a :class:`StudioConfig`."""
+
+    def __init__(self, config: StudioConfig) -> None:
+        self.config = config
+        self.scene = build_scene(config.seed)
+        self.intrinsics = studio_intrinsics(config.width, config.height, config.distortion)
+
+    @cached_property
+    def renderer(self) -> Renderer:
+        return Renderer(self.scene, self.intrinsics, self.config.threads)
+
+    @cached_property
+    def _vignette(self) -> NDArray[np.float32] | None:
+        if self.config.vignette <= 0:
+            return None
+        r = self.renderer
+        return sensor.vignette_gain(r.xn, r.yn, self.config.vignette)[..., None]
+
+    def T_world_cam(self, index: int) -> F64:
+        return self.config.path.T_world_cam(index / self.config.fps)
+
+    def frame(self, index: int, T_world_cam: F64 | None = None) -> Frame:
+        """Frame ``index``; ``T_world_cam`` overrides the path's pose (closed-loop cameras,
+        e.g. a simulated pan-tilt head driven by a tracker) - the presenter, ball and noise
+        still follow the index."""
+        cfg = self.config
+        t_s = index / cfg.fps
+        if T_world_cam is None:
+            T_world_cam = self.T_world_cam(index)
+        else:
+            T_world_cam = np.array(T_world_cam, dtype=np.float64, copy=True)
+            if T_world_cam.shape != (4, 4):
+                raise ValueError(f"T_world_cam must be 4x4, got {T_world_cam.shape}")
+        parts: list[Prims] = []
+        extras: dict[str, Any] = {"path": cfg.path.kind, "cycle": t_s / cfg.path.period_s}
+        keypoints: dict[str, F64] | None = None
+        state = cfg.presenter.state(index) if cfg.presenter is not None else None
+        if state is not None:
+            body, keypoints = body_prims(state, self.scene)
+            parts.append(body)
+        ball_truth = None
+        if cfg.ball is not None:
+            ball_truth = cfg.ball.state(t_s)
+            parts.append(cfg.ball.prims(ball_truth[0], self.scene))
+        if cfg.occluder:
+            occ_centre = occluder_centre(t_s)
+            parts.append(occluder_prims(occ_centre, self.scene))
+            extras["occluder_pos_world"] = _tup(occ_centre)
+        out = self.renderer.render(T_world_cam, concat_prims(*parts) if parts else None)
+        color, depth, labels = out.color_bgr, out.depth_m, out.labels
+
+        boxes = label_boxes(labels, 6)
+        if cfg.occluder:
+            n_occ = int(boxes[LABEL_OCCLUDER, 4])
+            extras["occluder_pixels"] = n_occ
+            extras["occluder_fraction"] = n_occ / float(cfg.width * cfg.height)
+            extras["occluder_box_xywh"] = _xywh(*boxes[LABEL_OCCLUDER, :4]) if n_occ else None
+        min_px = max(1, round(1e-3 * cfg.width * cfg.height))
+        presenter_box: Box | None = None
+        if cfg.presenter is not None:
+            sel = boxes[[LABEL_HEAD, LABEL_TORSO, LABEL_LEGS]]
+            n_px = int(sel[:, 4].sum())
+            if n_px >= min_px:
+                vis = sel[sel[:, 4] > 0]
+                presenter_box = _xywh(
+                    vis[:, 0].min(), vis[:, 1].min(), vis[:, 2].max(), vis[:, 3].max()
+                )
+            extras["presenter_in_scene"] = state is not None
+            extras["presenter_pixels"] = n_px
+            extras["presenter_box_xywh"] = presenter_box
+            extras["presenter_part_boxes"] = {
+                name: (_xywh(*boxes[k, :4]) if boxes[k, 4] > 0 else None)
+                for name, k in (("head", LABEL_HEAD), ("torso", LABEL_TORSO), ("legs", LABEL_LEGS))
+            }
+            extras["presenter_pos_world"] = None if keypoints is None else _tup(keypoints["feet"])
+            extras["presenter_head_world"] = None if keypoints is None else _tup(keypoints["head"])
+        if ball_truth is not None and cfg.ball is not None:
+            pos, vel, acc = ball_truth
+            p_cam = (invert(T_world_cam) @ np.append(pos, 1.0))[:3]
+            uv = project(self.intrinsics, p_cam[None, :])[0]
+            extras["ball_pos_world"] = _tup(pos)
+            extras["ball_vel_world"] = _tup(vel)
+            extras["ball_acc_world"] = _tup(acc)
+            extras["ball_radius_m"] = cfg.ball.ball_radius_m
+            extras["ball_omega_rad_s"] = cfg.ball.omega_rad_s
+            extras["ball_center_px"] = (float(uv[0]), float(uv[1]))
+            extras["ball_pixels"] = int(boxes[LABEL_BALL, 4])
+            extras["ball_box_xywh"] = (
+                _xywh(*boxes[LABEL_BALL, :4]) if boxes[LABEL_BALL, 4] > 0 else None
+            )
+
+        if cfg.depth_noise > 0 or cfg.dropouts > 0 or cfg.color_noise > 0:
+            rng = np.random.default_rng([cfg.seed, index, 11])
+            exact = depth
+            if cfg.depth_noise > 0 or cfg.dropouts > 0:
+                extras["depth_exact_m"] = readonly(exact)
+            if cfg.depth_noise > 0:
+                depth = sensor.add_depth_noise(depth, cfg.depth_noise, rng)
+            if cfg.dropouts > 0:
+                depth = sensor.add_dropouts(depth, exact, cfg.dropouts, rng)
+            if cfg.color_noise > 0:
+                color = sensor.add_color_noise(color, cfg.color_noise, rng)
+        covered = cfg.cover_start <= index < cfg.cover_start + cfg.cover_frames
+        extras["covered"] = covered
+        if covered:
+            # lens cap: a dark, slightly noisy image and no depth; the truth stays valid
+            rng_c = np.random.default_rng([cfg.seed, index, 13])
+            color = rng_c.integers(0, 6, size=color.shape, dtype=np.uint8)
+            depth = np.zeros_like(depth)
+        if cfg.blur_px > 0:
+            color = sensor.lens_blur(color, cfg.blur_px)
+        if self._vignette is not None:
+            color = np.clip(color * self._vignette + 0.5, 0, 255).astype(np.uint8)
+        extras["labels"] = readonly(labels)
+        return Frame(
+            index=index,
+            timestamp_s=t_s,
+            color_bgr=color,
+            intrinsics=self.intrinsics,
+            depth_m=depth,
+            gt_T_world_cam=T_world_cam,
+            gt_box_xywh=presenter_box,
+            extras=extras,
+        )
+
+
+def _xywh(x0: float, y0: float, x1: float, y1: float) -> Box:
+    """Pixel-index extremes -> (x, y, w, h) covering whole pixels."""
+    return (float(x0), float(y0), float(x1 - x0 + 1), float(y1 - y0 + 1))
+
+
+def _tup(v: F64) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+#: the occluder: a grey panel 0.7 m wide and 1.3 m tall, 1.6 m in front of the rail, moving
+#: back and forth across the view at 0.5 m/s (about 30 % of a static 640x480 view)
+OCCLUDER_HALF_M = (0.35, 0.05, 0.65)
+OCCLUDER_Y_M = 1.6
+OCCLUDER_Z_M = 1.05
+
+
+def occluder_centre(t_s: float) -> F64:
+    """Triangle wave in x between -1.6 and 1.6 m at 0.5 m/s, starting at the left."""
+    span, speed = 3.2, 0.5
+    s = (speed * t_s) % (2.0 * span)
+    x = -1.6 + (s if s < span else 2.0 * span - s)
+    return np.array([x, OCCLUDER_Y_M, OCCLUDER_Z_M])
+
+
+def occluder_prims(centre: F64, scene: StudioScene) -> Prims:
+    hx, hy, hz = OCCLUDER_HALF_M
+    geom = np.zeros((1, 9))
+    geom[0, :8] = (*centre, hx, hy, hz, 1.0, 0.0)
+    mat = np.full((1, 6), scene.flat_mat["occluder"], np.int32)
+    signs = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], float)
+    corners = (centre + signs * np.array(OCCLUDER_HALF_M))[None]
+    return Prims(
+        np.array([BOX], np.int32), geom, mat, np.array([LABEL_OCCLUDER], np.uint8), corners
+    )
