@@ -1,0 +1,630 @@
+"""The Presenter page: VR-TV presenter tracking, from model set-up to robot-camera control.
+
+Set-up (paper Sec. III-B, Fig. 4): take a reference image from the source, drag the main
+region, drag two or more patches inside it (move / resize in Edit mode, Delete removes the
+selected patch, names are edited in the list); each patch's 10x10 hue-saturation histogram
+(+ the brightness bins of hue-less pixels) is shown. Degenerate selections get a one-line
+message. Models are saved as model.json + reference.png in the project (or a session folder).
+
+Live: Start runs ``presenter`` on a private :class:`app.engine_bridge.EngineBridge` (the Live
+page's run is left alone). Boxes or a cross-hair over the video, the particle cloud, the
+colour likelihood with its Pmin / Pref lines, x / y raw vs jitter-filtered, the state light,
+the control errors (eq. 7-8) and the UDP target are shown. Every parameter edit is sent as
+``SetParams`` and applies on the next frame. Records are stored on arrival; a 30 Hz timer
+draws.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QRectF, QSize, Qt, QTimer, Slot
+from PySide6.QtGui import QColor, QPainter
+from PySide6.QtWidgets import (
+    QButtonGroup,
+    QCheckBox,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QRadioButton,
+    QScrollArea,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.engine_bridge import EngineBridge
+from app.pages import PageSpec
+from widgets.param_form import ParamForm
+from widgets.patch_canvas import PATCH_COLOURS, PatchCanvas
+from widgets.status_light import StatusLight
+
+REDRAW_HZ = 30
+CELL_PX = 9
+HISTORY = 300
+DEFAULT_SOURCE = "synthetic:frames=3000,seed=3,presenter=1,path=static"
+
+
+class HistogramTile(QWidget):
+    """One patch's N x N hue-saturation histogram (cell colour = bin colour, square size =
+    weight) and, below, its N brightness bins for hue-less pixels."""
+
+    def __init__(self, name: str, hist: np.ndarray, n_bins: int, colour: str,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.name = name
+        self.hist = np.asarray(hist, dtype=np.float64)
+        self.n = n_bins
+        self.colour = QColor(colour)
+        self.setToolTip(f"{name}: hue (across) x saturation (down) histogram; bottom row: "
+                        "brightness of pixels without a hue")
+        self.setFixedSize(self.sizeHint())
+
+    def sizeHint(self) -> QSize:
+        return QSize(CELL_PX * self.n + 8, CELL_PX * (self.n + 1) + 24)
+
+    def paintEvent(self, _ev: object) -> None:
+        p = QPainter(self)
+        n, c = self.n, float(CELL_PX)
+        p.setPen(self.colour)
+        p.drawText(QRectF(0, 0, self.width(), 14), Qt.AlignmentFlag.AlignLeft, self.name)
+        top = 16.0
+        hs = self.hist[: n * n].reshape(n, n)  # [hue bin, sat bin]
+        grey = self.hist[n * n:]
+        vmax = max(float(self.hist.max()), 1e-9)
+        for hb in range(n):
+            for sb in range(n):
+                col = QColor.fromHsvF((hb + 0.5) / n, (sb + 0.5) / n, 1.0)
+                x, y = 4 + hb * c, top + sb * c
+                p.fillRect(QRectF(x, y, c - 1, c - 1), col.darker(350))
+                frac = float(np.sqrt(hs[hb, sb] / vmax))
+                if frac > 0.02:
+                    d = (c - 1) * frac
+                    p.fillRect(QRectF(x + (c - 1 - d) / 2, y + (c - 1 - d) / 2, d, d), col)
+        y = top + n * c + 4
+        for vb in range(n):
+            col = QColor.fromHsvF(0.0, 0.0, (vb + 0.5) / n)
+            x = 4 + vb * c
+            p.fillRect(QRectF(x, y, c - 1, c - 1), QColor("#202328"))
+            frac = float(np.sqrt(grey[vb] / vmax))
+            if frac > 0.02:
+                d = (c - 1) * frac
+                p.fillRect(QRectF(x + (c - 1 - d) / 2, y + (c - 1 - d) / 2, d, d), col)
+        p.end()
+
+
+class PresenterPage(QWidget):
+    def __init__(self, ctx: Any) -> None:
+        super().__init__()
+        from engine.presenter.params import PresenterParams
+
+        self.ctx = ctx
+        self.bridge = EngineBridge(self)
+        self.reference: np.ndarray | None = None
+        self.model: Any = None
+        self.latest: Any = None
+        self._session_dir: Path | None = None
+        self.hist_p: collections.deque[tuple[float, float, float]] = collections.deque(
+            maxlen=HISTORY)
+        self.hist_xy: collections.deque[tuple[float, ...]] = collections.deque(maxlen=HISTORY)
+        self._frames = 0
+
+        # ---------------------------------------------------------- set-up controls
+        self.source_edit = QLineEdit(DEFAULT_SOURCE)
+        self.source_edit.setToolTip("Source spec (synthetic:..., camera:N, a folder or video)")
+        self.take_button = QPushButton("Take reference")
+        self.take_button.setToolTip("Grab the current frame of the source as the reference")
+        self.take_button.clicked.connect(self.take_reference)
+        self.canvas = PatchCanvas()
+        self.mode_group = QButtonGroup(self)
+        self.mode_buttons: dict[str, QPushButton] = {}
+        mode_row = QHBoxLayout()
+        for mode, text, tip in (
+            ("main", "Main region", "Drag the rectangle enclosing the presenter"),
+            ("patch", "Add patch", "Drag a patch inside the main region (head, torso, legs...)"),
+            ("edit", "Edit", "Drag a rectangle to move it, its corner handle to resize it"),
+            ("floor", "Floor points", "Click four floor points of known position (overhead)"),
+        ):
+            b = QPushButton(text)
+            b.setCheckable(True)
+            b.setToolTip(tip)
+            self.mode_group.addButton(b)
+            self.mode_buttons[mode] = b
+            b.clicked.connect(lambda _=False, m=mode: self.canvas.set_mode(m))
+            mode_row.addWidget(b)
+        self.mode_buttons["main"].setChecked(True)
+        self.delete_button = QPushButton("Delete patch")
+        self.delete_button.clicked.connect(self.canvas.delete_selected)
+        self.auto_button = QPushButton("Split 3")
+        self.auto_button.setToolTip("Split the main region into head / torso / legs bands")
+        self.auto_button.clicked.connect(self.auto_split)
+        mode_row.addWidget(self.delete_button)
+        mode_row.addWidget(self.auto_button)
+        mode_row.addStretch(1)
+
+        self.patch_list = QListWidget()
+        self.patch_list.setMaximumHeight(80)
+        self.patch_list.setToolTip("Patches; double-click a name to rename it")
+        self.patch_list.itemChanged.connect(self._on_item_renamed)
+        self.patch_list.currentRowChanged.connect(self._on_list_selected)
+        self.hist_box = QWidget()
+        self.hist_layout = QHBoxLayout(self.hist_box)
+        self.hist_layout.setContentsMargins(0, 0, 0, 0)
+        self.hist_layout.addStretch(1)
+        self.message = QLabel("Take a reference image, then drag the main region and "
+                              "two or more patches.")
+        self.message.setWordWrap(True)
+        self.save_button = QPushButton("Save model")
+        self.save_button.clicked.connect(self.save_model)
+        self.load_button = QPushButton("Load model")
+        self.load_button.clicked.connect(self.load_model_dialog)
+        self.start_button = QPushButton("Start tracking")
+        self.start_button.setObjectName("primary")
+        self.start_button.clicked.connect(self.start_tracking)
+        self.stop_button = QPushButton("Stop")
+        self.stop_button.clicked.connect(self.stop_tracking)
+        self.realtime_check = QCheckBox("Real time")
+        self.realtime_check.setChecked(True)
+        self.realtime_check.setToolTip("Pace recorded sources at their frame rate")
+
+        self.canvas.rects_changed.connect(self._on_rects_changed)
+        self.canvas.selection_changed.connect(self._on_canvas_selected)
+        self.canvas.floor_point_added.connect(self._on_floor_point)
+
+        # ---------------------------------------------------------- live controls
+        self.form = ParamForm(PresenterParams())
+        self.form.params_changed.connect(self._on_params)
+        self.form.edit_rejected.connect(lambda msg: self._say(msg, "error"))
+        self.boxes_radio = QRadioButton("Boxes")
+        self.cross_radio = QRadioButton("Cross-hair")
+        self.boxes_radio.setChecked(True)
+        self.particles_check = QCheckBox("Particle cloud")
+        self.particles_check.setChecked(True)
+        self.light = StatusLight()
+        self.readout = QLabel("idle")
+        self.readout.setObjectName("readout")
+        self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.control_label = QLabel("control: -")
+        self.control_label.setWordWrap(True)
+
+        self.p_plot = pg.PlotWidget(title="colour likelihood P(z_col|s_t)")
+        self.p_plot.setLogMode(y=True)
+        self.p_plot.addLegend(offset=(-5, 5), labelTextSize="8pt")
+        self.p_curve = self.p_plot.plot(pen=pg.mkPen("#2ecc71", width=2), name="P")
+        self.pmin_curve = self.p_plot.plot(pen=pg.mkPen("#ff4d4f", style=Qt.PenStyle.DashLine),
+                                           name="Pmin")
+        self.pref_curve = self.p_plot.plot(pen=pg.mkPen("#4cc3ff", style=Qt.PenStyle.DashLine),
+                                           name="Pref")
+        self.xy_plot = pg.PlotWidget(title="x / y (px): raw vs filtered")
+        self.xy_plot.addLegend(offset=(-5, 5), labelTextSize="8pt")
+        self.x_raw = self.xy_plot.plot(pen=pg.mkPen("#4cc3ff", width=1), name="x raw")
+        self.x_f = self.xy_plot.plot(pen=pg.mkPen("#ffd24c", width=2), name="x filtered")
+        self.y_raw = self.xy_plot.plot(pen=pg.mkPen("#ff7ad9", width=1), name="y raw")
+        self.y_f = self.xy_plot.plot(pen=pg.mkPen("#9dff4c", width=2), name="y filtered")
+        self.d_plot = pg.PlotWidget(title="d (m) from the overhead view")
+        self.d_curve = self.d_plot.plot(pen=pg.mkPen("#ff8c42", width=2))
+        for plot in (self.p_plot, self.xy_plot, self.d_plot):
+            plot.setMinimumHeight(120)
+            plot.setMinimumWidth(200)
+
+        # ---------------------------------------------------------- layout
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        src_row = QHBoxLayout()
+        src_row.addWidget(QLabel("Source"))
+        src_row.addWidget(self.source_edit, 1)
+        src_row.addWidget(self.take_button)
+        lv.addLayout(src_row)
+        lv.addLayout(mode_row)
+        lv.addWidget(self.canvas, 1)
+        disp = QHBoxLayout()
+        disp.addWidget(self.boxes_radio)
+        disp.addWidget(self.cross_radio)
+        disp.addWidget(self.particles_check)
+        disp.addStretch(1)
+        disp.addWidget(self.realtime_check)
+        disp.addWidget(self.start_button)
+        disp.addWidget(self.stop_button)
+        lv.addLayout(disp)
+        lv.addWidget(self.message)
+
+        model_box = QGroupBox("Model")
+        mg = QGridLayout(model_box)
+        mg.addWidget(self.patch_list, 0, 0, 1, 2)
+        mg.addWidget(self.save_button, 1, 0)
+        mg.addWidget(self.load_button, 1, 1)
+        hist_scroll = QScrollArea()
+        hist_scroll.setWidget(self.hist_box)
+        hist_scroll.setWidgetResizable(True)
+        hist_scroll.setMinimumHeight(CELL_PX * 11 + 44)
+        mg.addWidget(hist_scroll, 2, 0, 1, 2)
+
+        live_box = QGroupBox("Live")
+        lg = QVBoxLayout(live_box)
+        lg.addWidget(self.light)
+        lg.addWidget(self.readout)
+        lg.addWidget(self.control_label)
+
+        form_scroll = QScrollArea()
+        form_scroll.setWidget(self.form)
+        form_scroll.setWidgetResizable(True)
+        right = QWidget()
+        rv = QVBoxLayout(right)
+        rv.addWidget(model_box)
+        rv.addWidget(live_box)
+        rv.addWidget(form_scroll, 1)
+
+        plots = QWidget()
+        pv = QHBoxLayout(plots)
+        pv.setContentsMargins(0, 0, 0, 0)
+        pv.addWidget(self.p_plot)
+        pv.addWidget(self.xy_plot)
+        pv.addWidget(self.d_plot)
+
+        centre = QSplitter(Qt.Orientation.Vertical)
+        centre.addWidget(left)
+        centre.addWidget(plots)
+        centre.setStretchFactor(0, 4)
+        centre.setStretchFactor(1, 1)
+        centre.setSizes([700, 200])
+        split = QSplitter(Qt.Orientation.Horizontal)
+        split.addWidget(centre)
+        split.addWidget(right)
+        split.setStretchFactor(0, 3)
+        split.setStretchFactor(1, 1)
+        split.setSizes([1100, 380])
+        outer = QVBoxLayout(self)
+        outer.setContentsMargins(6, 6, 6, 6)
+        outer.addWidget(split)
+
+        self.bridge.result_ready.connect(self._on_record)
+        self.bridge.failed.connect(lambda msg: self._say(f"tracking failed: {msg}", "error"))
+        self.bridge.started.connect(lambda: self._say("tracking started", "info"))
+        self.bridge.finished.connect(self._on_finished)
+        self.timer = QTimer(self)
+        self.timer.setInterval(int(1000 / REDRAW_HZ))
+        self.timer.timeout.connect(self.redraw)
+        self.timer.start()
+
+    # ------------------------------------------------------------------ messages
+    def _say(self, text: str, level: str = "info") -> None:
+        colour = {"info": "#b9bec7", "warning": "#f0b429", "error": "#ff4d4f"}[level]
+        if text == self.message.text():
+            return
+        self.message.setText(text)
+        self.message.setStyleSheet(f"color: {colour};")
+        log = getattr(self.ctx, "log", None)
+        if log is not None and hasattr(log, level):
+            getattr(log, level)(f"Presenter: {text}")
+
+    # ------------------------------------------------------------------ set-up
+    @Slot()
+    def take_reference(self) -> None:
+        """The latest tracked frame if running, else the first frame of the source."""
+        frame = None
+        if self.latest is not None and self.bridge.is_running:
+            frame = self.latest.frame
+        else:
+            from engine.errors import StudioTrackError
+            from engine.sources import open_source
+
+            try:
+                with open_source(self.source_edit.text()) as src:
+                    frame = next(iter(src.frames()), None)
+            except (StudioTrackError, OSError) as exc:
+                self._say(f"cannot take a reference: {exc}", "error")
+                return
+        if frame is None or frame.color_bgr is None:
+            self._say("the source gave no image", "error")
+            return
+        img = frame.color_bgr
+        if img.ndim == 2:
+            img = np.repeat(img[..., None], 3, axis=2)
+        self.set_reference(np.array(img))
+
+    def set_reference(self, image_bgr: np.ndarray) -> None:
+        self.reference = image_bgr
+        self.canvas.set_image(image_bgr)
+        self._on_rects_changed()
+        h, w = image_bgr.shape[:2]
+        self._say(f"reference {w}x{h} taken: drag the main region, then two or more patches")
+
+    @Slot()
+    def auto_split(self) -> None:
+        from engine.presenter.model import auto_patches
+
+        if self.canvas.main is None:
+            self._say("draw the main region first", "error")
+            return
+        self.canvas.set_model(self.canvas.main,
+                              [(p.name, p.xywh) for p in auto_patches(self.canvas.main, 3)])
+
+    def build_model(self) -> Any:
+        """Validate the drawn selection and build the model; None (with a message) if bad."""
+        from engine.presenter import PresenterError
+        from engine.presenter.model import PatchSpec, build_model
+
+        if self.reference is None:
+            self._say("take a reference image first", "error")
+            return None
+        if self.canvas.main is None:
+            self._say("no main region: drag a rectangle around the presenter", "error")
+            return None
+        p = self.form.params
+        try:
+            model = build_model(self.reference, self.canvas.main,
+                                [PatchSpec(r.name, r.xywh) for r in self.canvas.patches],
+                                n_bins=p.n_bins, grey_world=p.grey_world)
+        except PresenterError as exc:
+            self._say(str(exc), "error")
+            return None
+        if model.warnings:
+            self._say("; ".join(model.warnings), "warning")
+        else:
+            self._say(f"model OK: {len(model.patches)} patches", "info")
+        return model
+
+    def _refresh_list(self) -> None:
+        self.patch_list.blockSignals(True)
+        self.patch_list.clear()
+        for i, r in enumerate(self.canvas.patches):
+            item = QListWidgetItem(r.name)
+            item.setFlags(item.flags() | Qt.ItemFlag.ItemIsEditable)
+            item.setForeground(QColor(PATCH_COLOURS[i % len(PATCH_COLOURS)]))
+            self.patch_list.addItem(item)
+        if 0 <= self.canvas.selected < self.patch_list.count():
+            self.patch_list.setCurrentRow(self.canvas.selected)
+        self.patch_list.blockSignals(False)
+
+    def _refresh_histograms(self, model: Any) -> None:
+        while self.hist_layout.count() > 1:
+            item = self.hist_layout.takeAt(0)
+            w = item.widget() if item is not None else None
+            if w is not None:
+                w.setParent(None)  # type: ignore[call-overload]
+                w.deleteLater()
+        if model is None:
+            return
+        for i, (spec, hist) in enumerate(zip(model.patches, model.hists, strict=True)):
+            tile = HistogramTile(spec.name, hist, model.n_bins,
+                                 PATCH_COLOURS[i % len(PATCH_COLOURS)])
+            self.hist_layout.insertWidget(self.hist_layout.count() - 1, tile)
+
+    @Slot()
+    def _on_rects_changed(self) -> None:
+        self._refresh_list()
+        if self.reference is None or self.canvas.main is None or not self.canvas.patches:
+            self.model = None
+            self._refresh_histograms(None)
+            return
+        self.model = self.build_model()
+        if self.model is None:
+            # still show what the valid patches look like
+            self._refresh_histograms(self._partial_model())
+        else:
+            self._refresh_histograms(self.model)
+
+    def _partial_model(self) -> Any:
+        """Histograms of the drawn patches even when the selection is not yet valid."""
+        from types import SimpleNamespace
+
+        import cv2
+
+        from engine.presenter.likelihood import (
+            apply_gains,
+            direct_histogram,
+            grey_world_gains,
+        )
+
+        if self.reference is None:
+            return None
+        p = self.form.params
+        img = self.reference
+        if p.grey_world:
+            img = apply_gains(img, grey_world_gains(img))
+        hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+        specs, hists = [], []
+        for r in self.canvas.patches:
+            x, y, w, h = (round(v) for v in r.xywh)
+            c = direct_histogram(hsv, (x, y, max(w, 1), max(h, 1)), p.n_bins)
+            if c.sum() > 0:
+                specs.append(SimpleNamespace(name=r.name))
+                hists.append(c / c.sum())
+        return SimpleNamespace(patches=specs, hists=hists, n_bins=p.n_bins)
+
+    @Slot(QListWidgetItem)
+    def _on_item_renamed(self, item: QListWidgetItem) -> None:
+        row = self.patch_list.row(item)
+        name = item.text().strip()
+        if 0 <= row < len(self.canvas.patches) and name:
+            self.canvas.rename(row, name)
+
+    @Slot(int)
+    def _on_list_selected(self, row: int) -> None:
+        self.canvas.select(row)
+
+    @Slot(int)
+    def _on_canvas_selected(self, idx: int) -> None:
+        self.patch_list.blockSignals(True)
+        self.patch_list.setCurrentRow(idx if idx >= 0 else -1)
+        self.patch_list.blockSignals(False)
+
+    @Slot(float, float)
+    def _on_floor_point(self, x: float, y: float) -> None:
+        n = len(self.canvas.floor_points)
+        self._say(f"floor point F{n} at ({x:.0f}, {y:.0f}) px"
+                  + (" - four points: enter their floor coordinates in the overhead "
+                     "calibration file" if n == 4 else ""))
+
+    # ------------------------------------------------------------------ persistence
+    def model_dir(self) -> Path:
+        """``<project>/presenter/frontal`` if a project is open, else a session folder."""
+        project = getattr(self.ctx, "project", None)
+        root = getattr(project, "folder", None) or getattr(project, "path", None)
+        if root is not None:
+            return Path(root) / "presenter" / "frontal"
+        if self._session_dir is None:
+            self._session_dir = Path(tempfile.mkdtemp(prefix="studiotrack-presenter-"))
+        return self._session_dir / "frontal"
+
+    @Slot()
+    def save_model(self) -> Path | None:
+        from engine.presenter.model import save_model
+
+        model = self.build_model()
+        if model is None or self.reference is None:
+            return None
+        path = save_model(self.model_dir(), model, self.reference)
+        self._say(f"model saved to {path}")
+        return path
+
+    @Slot()
+    def load_model_dialog(self) -> None:
+        from PySide6.QtWidgets import QFileDialog
+
+        folder = QFileDialog.getExistingDirectory(self, "Presenter model folder",
+                                                  str(self.model_dir()))
+        if folder:
+            self.load_model_from(Path(folder))
+
+    def load_model_from(self, folder: Path) -> None:
+        from engine.presenter import PresenterError
+        from engine.presenter.model import load_model
+
+        try:
+            model, img = load_model(folder)
+        except PresenterError as exc:
+            self._say(str(exc), "error")
+            return
+        self.set_reference(img)
+        self.canvas.set_model(model.main_xywh, [(p.name, p.xywh) for p in model.patches])
+
+    # ------------------------------------------------------------------ tracking
+    @Slot()
+    def start_tracking(self) -> bool:
+        path = self.save_model()
+        if path is None:
+            return False
+        params = dataclasses.replace(self.form.params, model_path=str(path.parent))
+        self.form.set_params(params)
+        self.hist_p.clear()
+        self.hist_xy.clear()
+        self._frames = 0
+        self.canvas.show_model = False
+        self.bridge.start(self.source_edit.text(), "presenter", params,
+                          realtime=self.realtime_check.isChecked())
+        return True
+
+    @Slot()
+    def stop_tracking(self) -> None:
+        self.bridge.stop()
+
+    @Slot()
+    def _on_finished(self) -> None:
+        self.canvas.show_model = True
+        self.light.set_state(None)
+        self.canvas.update()
+
+    @Slot(object)
+    def _on_params(self, params: Any) -> None:
+        if self.bridge.is_running:
+            self.bridge.set_params(params)
+        if self.reference is not None and self.canvas.main is not None:
+            self._on_rects_changed()
+
+    @Slot(object)
+    def _on_record(self, record: Any) -> None:
+        self.latest = record
+        self._frames += 1
+        ex = record.result.extras
+        if "p_col" in ex:
+            self.hist_p.append((max(ex["p_col"], 1e-12), max(ex["p_min"], 1e-12),
+                                max(ex["p_ref"], 1e-12)))
+            raw, filt = ex["raw_xyh"], ex["filtered_xyh"]
+            d = ex.get("d_m")
+            self.hist_xy.append((raw[0], filt[0], raw[1], filt[1],
+                                 float("nan") if d is None else d))
+
+    @Slot()
+    def redraw(self) -> None:
+        rec = self.latest
+        if rec is None or not self.bridge.is_running:
+            return
+        res = rec.result
+        self.canvas.set_image(rec.frame.color_bgr)
+        ov = res.overlay
+        boxes: list[tuple[Any, str]] = []
+        cross = None
+        ex = res.extras
+        if ov is not None:
+            if self.boxes_radio.isChecked():
+                boxes = list(zip(ov.boxes_xywh, ov.box_labels, strict=False))
+            else:
+                cross = ov.crosshair_uv
+        parts = weights = None
+        if ov is not None and self.particles_check.isChecked():
+            parts, weights = ov.points_uv, ov.point_weights
+        target = None
+        cmd = ex.get("control")
+        if cmd is not None:
+            target = (cmd.target_x_px, cmd.target_y_px)
+        self.canvas.set_live(boxes, cross, parts, weights, target)
+        self.light.set_state(res.state)
+        if "p_col" in ex:
+            self.readout.setText(
+                f"P {ex['p_col']:.3g}   Pref {ex['p_ref']:.3g}   Pmin {ex['p_min']:.3g}\n"
+                f"particles {ex['n_particles']}   lost frames {ex['lost_frames']}\n"
+                f"jitter lag {ex['lag_frames']:.1f} frames = {ex['lag_s']:.2f} s   "
+                f"{rec.fps:.0f} fps")
+        if cmd is not None:
+            p = self.form.params
+            udp = (f"UDP -> {p.control_host}:{p.control_port}" if p.control_udp
+                   else "UDP off")
+            ed = "-" if cmd.e_d_m is None else f"{cmd.e_d_m:+.2f} m"
+            self.control_label.setText(
+                f"e_f = [{cmd.e_f_px[0]:+.1f}, {cmd.e_f_px[1]:+.1f}] px   e_d = {ed}\n"
+                f"v = [{cmd.v_x_px_s:+.0f}, {cmd.v_y_px_s:+.0f}] px/s, "
+                f"{cmd.v_d_m_s:+.2f} m/s   {udp}")
+        if self.hist_p:
+            arr = np.asarray(self.hist_p)
+            t = np.arange(len(arr))
+            self.p_curve.setData(t, arr[:, 0])
+            self.pmin_curve.setData(t, arr[:, 1])
+            self.pref_curve.setData(t, arr[:, 2])
+            xy = np.asarray(self.hist_xy)
+            self.x_raw.setData(t, xy[:, 0])
+            self.x_f.setData(t, xy[:, 1])
+            self.y_raw.setData(t, xy[:, 2])
+            self.y_f.setData(t, xy[:, 3])
+            ok = np.isfinite(xy[:, 4])
+            self.d_curve.setData(t[ok], xy[ok, 4])
+            self.d_plot.setTitle("d (m) from the overhead view" if ok.any()
+                                 else "d: no overhead view in this source")
+
+    def closeEvent(self, event: Any) -> None:
+        self.bridge.stop()
+        super().closeEvent(event)
+
+
+def _factory(ctx: Any) -> QWidget:
+    return PresenterPage(ctx)
+
+
+PAGE = PageSpec(
+    title="Presenter",
+    order=20,
+    factory=_factory,
+    tooltip="Presenter tracking (VR-TV multi-patch particle filter): model set-up, live "
+    "tuning, loss handling, robot-camera control",
+)

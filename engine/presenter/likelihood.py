@@ -1,0 +1,348 @@
+"""Colour and motion likelihoods of the multi-patch model (VR-TV paper, Sec. III-C.3-5).
+
+Histograms
+    Joint hue-saturation histograms with N x N bins (N = 10 in the paper), plus N brightness
+    bins for pixels whose hue is undefined (saturation < ``s_min`` or value < ``v_min``), as
+    in the paper's reference [6] (Pérez et al. 2002): a grey or black region still has a
+    histogram instead of collapsing into one arbitrary hue bin. ``n_bins_total = N*N + N``.
+
+Integral histograms
+    The cost of one patch histogram must not grow with the patch area. For every frame one
+    integral histogram is built over the region the particles cover (``binned_integral``),
+    on a grid of ``cell x cell`` pixels chosen so that the grid has at most ``max_cells``
+    cells a side; a patch's histogram is then 4 corner look-ups per bin, bilinearly
+    interpolated between grid nodes (uniform spread inside a cell). With ``cell = 1`` and
+    integer rectangles it equals the direct histogram exactly (tested).
+
+Equations
+    eq. (2)  B_p = sqrt(1 - sum_n sqrt(q*_p(n) q_p(s, n)))        ``bhattacharyya``
+    eq. (3)  P(z_col | s) = exp(-sum_p B_p^2 / lambda_col)         ``colour_likelihood``
+    eq. (4)  P(z_mot | s) = exp(-E^2 / lambda_mot)                  ``motion_likelihood``
+             E = fraction of non-motion pixels under the patches (the paper counts pixels;
+             a fraction keeps lambda_mot independent of the presenter's size in the image).
+    eq. (5)  w = P(z_col | s) P(z_mot | s)                          ``engine.presenter.filter``
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+
+S_MIN_DEFAULT = 26  # 0.1 of the 8-bit range, Pérez et al. [6]
+V_MIN_DEFAULT = 51  # 0.2 of the 8-bit range
+
+
+def n_bins_total(n: int) -> int:
+    """Number of histogram bins: N x N hue-saturation bins + N brightness bins."""
+    return n * n + n
+
+
+def bin_map(hsv_u8: NDArray[np.uint8], n: int, s_min: int = S_MIN_DEFAULT,
+            v_min: int = V_MIN_DEFAULT) -> NDArray[np.int32]:
+    """Bin index of every pixel of an OpenCV 8-bit HSV image (H in 0..179)."""
+    h = hsv_u8[..., 0].astype(np.int32)
+    s = hsv_u8[..., 1].astype(np.int32)
+    v = hsv_u8[..., 2].astype(np.int32)
+    chroma = (s >= s_min) & (v >= v_min)
+    hs = np.minimum(h * n // 180, n - 1) * n + s * n // 256
+    grey = n * n + v * n // 256
+    return np.where(chroma, hs, grey).astype(np.int32)
+
+
+def direct_histogram(hsv_u8: NDArray[np.uint8], xywh: tuple[int, int, int, int], n: int,
+                     s_min: int = S_MIN_DEFAULT, v_min: int = V_MIN_DEFAULT) -> F64:
+    """Un-normalised histogram (counts) of an integer rectangle, computed pixel by pixel."""
+    x, y, w, h = (round(v) for v in xywh)
+    H, W = hsv_u8.shape[:2]
+    x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + w, W), min(y + h, H)
+    out = np.zeros(n_bins_total(n))
+    if x1 <= x0 or y1 <= y0:
+        return out
+    b = bin_map(hsv_u8[y0:y1, x0:x1], n, s_min, v_min)
+    np.add.at(out, b.ravel(), 1.0)
+    return out
+
+
+def chromatic_fraction(hsv_u8: NDArray[np.uint8], xywh: tuple[int, int, int, int],
+                       s_min: int = S_MIN_DEFAULT, v_min: int = V_MIN_DEFAULT) -> float:
+    """Fraction of the rectangle's pixels that have a defined hue (for the grey-patch check)."""
+    x, y, w, h = (round(v) for v in xywh)
+    H, W = hsv_u8.shape[:2]
+    x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + w, W), min(y + h, H)
+    if x1 <= x0 or y1 <= y0:
+        return 0.0
+    roi = hsv_u8[y0:y1, x0:x1]
+    return float(np.mean((roi[..., 1] >= s_min) & (roi[..., 2] >= v_min)))
+
+
+def grey_world_gains(bgr: NDArray[np.uint8], step: int = 8) -> F64:
+    """Per-channel gains that make the frame's mean grey (von Kries / grey-world balance).
+
+    Cameras re-balance white continuously outdoors; dividing out the frame's mean colour keeps
+    the hue-saturation histograms comparable with the reference (a pre-processing step; the
+    studio's controlled light needs it less).
+    """
+    m = np.asarray(cv2.mean(np.ascontiguousarray(bgr[::step, ::step]))[:3], dtype=np.float64)
+    return np.asarray(m.mean() / np.maximum(m, 1.0), dtype=np.float64)
+
+
+def apply_gains(bgr: NDArray[np.uint8], gains: F64 | None) -> NDArray[np.uint8]:
+    if gains is None:
+        return bgr
+    return cv2.transform(bgr, np.diag(gains))  # per-channel gain, saturating uint8
+
+
+def bhattacharyya(q: F64, q_ref: F64) -> float:
+    """Bhattacharyya distance of two histograms (normalised here), eq. (2)."""
+    q = np.asarray(q, dtype=np.float64)
+    r = np.asarray(q_ref, dtype=np.float64)
+    sq, sr = q.sum(), r.sum()
+    if sq <= 0 or sr <= 0:
+        return 1.0
+    bc = float(np.sum(np.sqrt((q / sq) * (r / sr))))
+    return math.sqrt(max(1.0 - bc, 0.0))
+
+
+def colour_likelihood(sum_b2: F64 | float, lambda_col: float) -> F64:
+    """P(z_col | s) = exp(-sum_p B_p^2 / lambda_col), eq. (3)."""
+    return np.exp(-np.asarray(sum_b2, dtype=np.float64) / lambda_col)
+
+
+def motion_likelihood(e_nonmotion: F64 | float, lambda_mot: float) -> F64:
+    """P(z_mot | s) = exp(-E^2 / lambda_mot), eq. (4)."""
+    e = np.asarray(e_nonmotion, dtype=np.float64)
+    return np.exp(-(e * e) / lambda_mot)
+
+
+# ----------------------------------------------------------------------------- integral
+
+
+@njit(cache=True)
+def _binned_integral(hsv, n, cell, s_min, v_min, inc):  # type: ignore[no-untyped-def]
+    H, W = hsv.shape[0], hsv.shape[1]
+    hc = (H + cell - 1) // cell
+    wc = (W + cell - 1) // cell
+    nb = n * n + n
+    out = np.zeros((hc + 1, wc + 1, nb), np.float32)
+    for y in range(H):
+        cy = y // cell + 1
+        for x in range(W):
+            h = np.int32(hsv[y, x, 0])
+            s = np.int32(hsv[y, x, 1])
+            v = np.int32(hsv[y, x, 2])
+            if s >= s_min and v >= v_min:
+                hb = h * n // 180
+                if hb > n - 1:
+                    hb = n - 1
+                b = hb * n + s * n // 256
+            else:
+                b = n * n + v * n // 256
+            out[cy, x // cell + 1, b] += inc
+    for cy in range(1, hc + 1):
+        for cx in range(1, wc + 1):
+            for b in range(nb):
+                out[cy, cx, b] += out[cy - 1, cx, b] + out[cy, cx - 1, b] - out[cy - 1, cx - 1, b]
+    return out
+
+
+def binned_integral(hsv_roi: NDArray[np.uint8], n: int, cell: int = 1,
+                    s_min: int = S_MIN_DEFAULT, v_min: int = V_MIN_DEFAULT,
+                    pixel_weight: float = 1.0) -> F32:
+    """Integral histogram (rows+1, cols+1, N*N+N) of an HSV region on a ``cell`` px grid.
+
+    ``pixel_weight``: what one pixel counts for; 4 when the region was subsampled by 2 in
+    each direction, so that counts stay in full-resolution pixels.
+    """
+    return _binned_integral(np.ascontiguousarray(hsv_roi), n, max(int(cell), 1), s_min, v_min,
+                            np.float32(pixel_weight))
+
+
+@njit(cache=True)
+def _add_corner(ih, u, v, sign, out):  # type: ignore[no-untyped-def]
+    # bilinear interpolation of the integral histogram at grid coordinates (u, v)
+    hc = ih.shape[0] - 1
+    wc = ih.shape[1] - 1
+    u = min(max(u, 0.0), float(wc))
+    v = min(max(v, 0.0), float(hc))
+    iu = min(int(u), wc - 1) if wc > 0 else 0
+    iv = min(int(v), hc - 1) if hc > 0 else 0
+    fu = u - iu
+    fv = v - iv
+    w00 = sign * (1 - fu) * (1 - fv)
+    w01 = sign * fu * (1 - fv)
+    w10 = sign * (1 - fu) * fv
+    w11 = sign * fu * fv
+    iu1 = min(iu + 1, wc)
+    iv1 = min(iv + 1, hc)
+    for b in range(out.shape[0]):
+        out[b] += (w00 * ih[iv, iu, b] + w01 * ih[iv, iu1, b]
+                   + w10 * ih[iv1, iu, b] + w11 * ih[iv1, iu1, b])
+
+
+@njit(cache=True)
+def _rect_hist(ih, cell, x0, y0, x1, y1, out):  # type: ignore[no-untyped-def]
+    out[:] = 0.0
+    _add_corner(ih, x1 / cell, y1 / cell, 1.0, out)
+    _add_corner(ih, x0 / cell, y1 / cell, -1.0, out)
+    _add_corner(ih, x1 / cell, y0 / cell, -1.0, out)
+    _add_corner(ih, x0 / cell, y0 / cell, 1.0, out)
+
+
+def rect_histogram(integral: F32, cell: int, xywh: tuple[float, float, float, float]) -> F64:
+    """Counts of a rectangle (coordinates relative to the integral's origin) from the integral."""
+    x, y, w, h = xywh
+    out = np.zeros(integral.shape[2])
+    _rect_hist(integral, float(cell), float(x), float(y), float(x + w), float(y + h), out)
+    return out
+
+
+@njit(cache=True)
+def _colour_residuals(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h, particles, rel, aspect,
+                      sqrt_ref):  # type: ignore[no-untyped-def]
+    n_part = particles.shape[0]
+    n_patch = rel.shape[0]
+    nb = sqrt_ref.shape[1]
+    out = np.empty(n_part)
+    hist = np.empty(nb)
+    for i in range(n_part):
+        cx = particles[i, 0]
+        cy = particles[i, 1]
+        hh = particles[i, 2]
+        ww = hh * aspect
+        left = cx - 0.5 * ww
+        top = cy - 0.5 * hh
+        acc = 0.0
+        for p in range(n_patch):
+            px0 = left + rel[p, 0] * ww
+            py0 = top + rel[p, 1] * hh
+            px1 = left + rel[p, 2] * ww
+            py1 = top + rel[p, 3] * hh
+            area = (px1 - px0) * (py1 - py0)
+            # visible part in image coordinates, then relative to the ROI
+            vx0 = max(px0, 0.0)
+            vy0 = max(py0, 0.0)
+            vx1 = min(px1, float(img_w))
+            vy1 = min(py1, float(img_h))
+            if area <= 0.0 or vx1 - vx0 <= 0.0 or vy1 - vy0 <= 0.0:
+                acc += 1.0
+                continue
+            rx0 = min(max(vx0 - ox, 0.0), roi_w)
+            ry0 = min(max(vy0 - oy, 0.0), roi_h)
+            rx1 = min(max(vx1 - ox, 0.0), roi_w)
+            ry1 = min(max(vy1 - oy, 0.0), roi_h)
+            _rect_hist(ih, cell, rx0, ry0, rx1, ry1, hist)
+            total = 0.0
+            for b in range(nb):
+                if hist[b] < 0.0:
+                    hist[b] = 0.0
+                total += hist[b]
+            # pixels of the patch outside the image count as matching nothing
+            outside = area - (vx1 - vx0) * (vy1 - vy0)
+            total += max(outside, 0.0)
+            if total <= 1e-9:
+                acc += 1.0
+                continue
+            bc = 0.0
+            for b in range(nb):
+                bc += math.sqrt(hist[b] / total) * sqrt_ref[p, b]
+            acc += max(1.0 - bc, 0.0)  # B_p^2, eq. (2)
+        out[i] = acc
+    return out
+
+
+def colour_residuals(integral: F32, cell: int, roi_xywh: tuple[int, int, int, int],
+                     image_wh: tuple[int, int], particles_xyh: F64, rel_boxes: F64,
+                     aspect: float, sqrt_ref: F64) -> F64:
+    """sum_p B_p^2 for every particle (x, y, h): the exponent of eq. (3) times lambda_col."""
+    ox, oy, rw, rh = roi_xywh
+    return _colour_residuals(integral, float(cell), float(ox), float(oy), float(rw), float(rh),
+                             int(image_wh[0]), int(image_wh[1]),
+                             np.ascontiguousarray(particles_xyh, dtype=np.float64),
+                             np.ascontiguousarray(rel_boxes, dtype=np.float64), float(aspect),
+                             np.ascontiguousarray(sqrt_ref, dtype=np.float64))
+
+
+@njit(cache=True)
+def _motion_residuals(S, particles, rel, aspect, scale):  # type: ignore[no-untyped-def]
+    img_h = S.shape[0] - 1
+    img_w = S.shape[1] - 1
+    n_part = particles.shape[0]
+    out = np.empty(n_part)
+    for i in range(n_part):
+        hh = particles[i, 2] / scale
+        ww = hh * aspect
+        left = particles[i, 0] / scale - 0.5 * ww
+        top = particles[i, 1] / scale - 0.5 * hh
+        moving = 0.0
+        area = 0.0
+        for p in range(rel.shape[0]):
+            x0 = round(left + rel[p, 0] * ww)
+            y0 = round(top + rel[p, 1] * hh)
+            x1 = round(left + rel[p, 2] * ww)
+            y1 = round(top + rel[p, 3] * hh)
+            if x1 <= x0 or y1 <= y0:
+                continue
+            area += (x1 - x0) * (y1 - y0)
+            cx0 = min(max(x0, 0), img_w)
+            cy0 = min(max(y0, 0), img_h)
+            cx1 = min(max(x1, 0), img_w)
+            cy1 = min(max(y1, 0), img_h)
+            moving += S[cy1, cx1] - S[cy0, cx1] - S[cy1, cx0] + S[cy0, cx0]
+        out[i] = 1.0 if area <= 0 else 1.0 - moving / area
+    return out
+
+
+def motion_residuals(motion_integral: NDArray[np.int32], particles_xyh: F64, rel_boxes: F64,
+                     aspect: float, scale: int = 1) -> F64:
+    """E for every particle: fraction of non-motion pixels under its patches (eq. 4).
+
+    ``scale``: the motion image's subsampling (2 = half resolution).
+    """
+    return _motion_residuals(motion_integral,
+                             np.ascontiguousarray(particles_xyh, dtype=np.float64),
+                             np.ascontiguousarray(rel_boxes, dtype=np.float64), float(aspect),
+                             float(scale))
+
+
+class MotionHistory:
+    """Absolute motion history image z_mot (Bobick & Davis, the paper's ref. [8]).
+
+    A pixel whose grey level changed by more than ``threshold`` since the last frame is set to
+    ``duration_frames``; every other pixel decays by one per frame. Motion pixels are > 0.
+    """
+
+    def __init__(self, duration_frames: int = 8, threshold: int = 20) -> None:
+        self.duration_frames = int(duration_frames)
+        self.threshold = int(threshold)
+        self._prev: NDArray[np.uint8] | None = None
+        self.mhi: NDArray[np.uint8] | None = None
+
+    def reset(self) -> None:
+        self._prev = None
+        self.mhi = None
+
+    def update(self, gray_u8: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """Feed one grey frame; returns the motion history image (uint8, 0 = no motion)."""
+        if self._prev is None or self._prev.shape != gray_u8.shape or self.mhi is None:
+            self._prev = gray_u8.copy()
+            self.mhi = np.zeros_like(gray_u8)
+            return self.mhi
+        diff = cv2.absdiff(gray_u8, self._prev)
+        mhi = cv2.subtract(self.mhi, 1.0)  # saturating decay
+        mhi[diff > self.threshold] = np.uint8(min(self.duration_frames, 255))
+        self.mhi = mhi
+        self._prev = gray_u8.copy()
+        return mhi
+
+    def motion_integral(self) -> NDArray[np.int32]:
+        """Integral image (H+1, W+1) of the motion mask (MHI > 0)."""
+        assert self.mhi is not None
+        mask = (self.mhi > 0).astype(np.uint8)
+        return cv2.integral(mask, sdepth=cv2.CV_32S)

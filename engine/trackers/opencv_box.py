@@ -1,0 +1,100 @@
+"""OpenCV's KCF, MIL and CSRT box trackers as peers of ``presenter`` (OpenCV 5 defaults).
+
+Initialised from the first frame's ground-truth box (``Frame.gt_box_xywh``). When OpenCV
+reports a failure the box holds its last value and the state is LOST.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from engine.errors import ParamsError, TrackerError
+from engine.frames import Frame
+from engine.trackers.base import Overlay, TrackerSpec, TrackResult, TrackState
+
+
+@dataclass(frozen=True, slots=True)
+class OpenCVBoxParams:
+    """OpenCV trackers run with their library defaults; only the initial box can be given."""
+
+    init_box_xywh: tuple[float, float, float, float] | None = field(
+        default=None, metadata={"help": "initial box; None = the first frame's ground truth"})
+
+    def __post_init__(self) -> None:
+        b = self.init_box_xywh
+        if b is not None and (len(b) != 4 or b[2] <= 0 or b[3] <= 0):
+            raise ParamsError(f"init_box_xywh must be x,y,w,h with w,h > 0, got {b}")
+
+
+def _create(kind: str) -> Any:
+    import cv2
+
+    cls = {"kcf": cv2.TrackerKCF, "mil": cv2.TrackerMIL, "csrt": cv2.TrackerCSRT}[kind]
+    return cls.create()  # OpenCV 5: TrackerX.create(), default parameters
+
+
+class OpenCVBoxTracker:
+    def __init__(self, kind: str, params: OpenCVBoxParams | None = None) -> None:
+        self.name = kind
+        self.kind = kind
+        self._params = params or OpenCVBoxParams()
+        self._cv: Any = None
+        self._box: tuple[float, float, float, float] | None = None
+
+    @property
+    def params(self) -> OpenCVBoxParams:
+        return self._params
+
+    def set_params(self, params: OpenCVBoxParams) -> None:
+        self._params = params
+
+    def reset(self) -> None:
+        self._cv = None
+        self._box = None
+
+    def track(self, frame: Frame) -> TrackResult:
+        import cv2
+
+        img = frame.color_bgr
+        if img is None:
+            raise TrackerError(f"{self.kind} tracker: frame {frame.index} has no image")
+        if img.ndim == 2:
+            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+        if self._cv is None:
+            box = self._params.init_box_xywh or frame.gt_box_xywh
+            if box is None:
+                return TrackResult(state=TrackState.INITIALIZING,
+                                   extras={"message": "no initial box"})
+            H, W = img.shape[:2]
+            x, y, w, h = (float(v) for v in box)
+            x0, y0 = max(round(x), 0), max(round(y), 0)
+            w_i = max(min(round(w), W - x0), 2)
+            h_i = max(min(round(h), H - y0), 2)
+            self._cv = _create(self.kind)
+            self._cv.init(img, (x0, y0, w_i, h_i))
+            self._box = (x, y, w, h)
+            return self._result(TrackState.TRACKING)
+        ok, box = self._cv.update(img)
+        if ok:
+            self._box = tuple(float(v) for v in box)  # type: ignore[assignment]
+        return self._result(TrackState.TRACKING if ok else TrackState.LOST)
+
+    def _result(self, state: TrackState) -> TrackResult:
+        assert self._box is not None
+        return TrackResult(state=state, box_xywh=self._box,
+                           overlay=Overlay(boxes_xywh=(self._box,), box_labels=(self.kind,)),
+                           extras={"score": np.nan})
+
+
+def _factory(kind: str) -> Any:
+    return lambda params: OpenCVBoxTracker(kind, params)
+
+
+TRACKERS = tuple(
+    TrackerSpec(name=kind, description=f"OpenCV {kind.upper()} box tracker (OpenCV 5 defaults)",
+                params_cls=OpenCVBoxParams, factory=_factory(kind), output="box")
+    for kind in ("kcf", "mil", "csrt")
+)

@@ -1,0 +1,103 @@
+"""Presenter page: drag a model with the mouse, see its histograms, start tracking."""
+
+from __future__ import annotations
+
+from PySide6.QtCore import QPoint, Qt
+from PySide6.QtTest import QTest
+
+from engine.sources import open_source
+
+SOURCE = "synthetic:frames=60,width=160,height=120,seed=3,presenter=1,path=static"
+
+
+def _drag(canvas, a: tuple[float, float], b: tuple[float, float]) -> None:  # type: ignore[no-untyped-def]
+    pa, pb = canvas.to_widget(*a).toPoint(), canvas.to_widget(*b).toPoint()
+    QTest.mousePress(canvas, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, pa)
+    mid = QPoint((pa.x() + pb.x()) // 2, (pa.y() + pb.y()) // 2)
+    QTest.mouseMove(canvas, mid)
+    QTest.mouseMove(canvas, pb)
+    QTest.mouseRelease(canvas, Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier, pb)
+
+
+def test_drag_main_region_and_three_patches_then_track(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
+    from app.main import configure_pyqtgraph
+    from app.pages.presenter import HistogramTile, PresenterPage
+
+    configure_pyqtgraph()
+    with open_source(SOURCE) as src:
+        first = next(iter(src.frames()))
+    x, y, w, h = first.gt_box_xywh
+    page = PresenterPage(ctx)
+    qtbot.addWidget(page)
+    page.resize(1200, 800)
+    page.show()
+    page.source_edit.setText(SOURCE)
+    page.realtime_check.setChecked(False)
+    qtbot.mouseClick(page.take_button, Qt.MouseButton.LeftButton)
+    assert page.reference is not None
+    assert page.reference.shape[:2] == (120, 160)
+
+    qtbot.mouseClick(page.mode_buttons["main"], Qt.MouseButton.LeftButton)
+    _drag(page.canvas, (x, y), (x + w, y + h))
+    assert page.canvas.main is not None
+    assert abs(page.canvas.main[0] - x) < 2
+    assert abs(page.canvas.main[3] - h) < 2
+    assert "at least two patches" not in page.message.text() or page.model is None
+
+    qtbot.mouseClick(page.mode_buttons["patch"], Qt.MouseButton.LeftButton)
+    bands = ((0.02, 0.22), (0.26, 0.58), (0.62, 0.98))
+    for a, b in bands:
+        _drag(page.canvas, (x + 0.1 * w, y + a * h), (x + 0.9 * w, y + b * h))
+    assert [p.name for p in page.canvas.patches] == ["patch 1", "patch 2", "patch 3"]
+    assert page.model is not None, page.message.text()
+    tiles = page.hist_box.findChildren(HistogramTile)
+    assert len(tiles) == 3
+
+    # rename through the list, select and move a patch in Edit mode
+    page.patch_list.item(0).setText("head")
+    assert page.canvas.patches[0].name == "head"
+    qtbot.mouseClick(page.mode_buttons["edit"], Qt.MouseButton.LeftButton)
+    px, py, pw, ph = page.canvas.patches[1].xywh
+    _drag(page.canvas, (px + pw / 2, py + ph / 2), (px + pw / 2, py + ph / 2 + 2))
+    assert page.canvas.selected == 1
+
+    with qtbot.waitSignal(page.bridge.started, timeout=20000):
+        qtbot.mouseClick(page.start_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: page._frames >= 5, timeout=30000)
+    page.redraw()
+    assert page.light.state is not None
+    assert "P " in page.readout.text()
+    assert "e_f" in page.control_label.text()
+    # a live edit goes to the engine as SetParams
+    editor = page.form.editor("n_particles")
+    editor.setValue(150)
+    qtbot.waitUntil(lambda: page.latest.result.extras["n_particles"] == 150, timeout=20000)
+    with qtbot.waitSignal(page.bridge.finished, timeout=20000):
+        page.stop_tracking()
+
+
+def test_degenerate_selection_message(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
+    from app.pages.presenter import PresenterPage
+
+    page = PresenterPage(ctx)
+    qtbot.addWidget(page)
+    page.resize(900, 700)
+    page.show()
+    import numpy as np
+
+    page.set_reference(np.full((120, 160, 3), 90, np.uint8))
+    page.canvas.set_model((20.0, 10.0, 60.0, 100.0), [("a", (20.0, 10.0, 60.0, 40.0))])
+    assert "at least two patches" in page.message.text()
+    page.canvas.set_model((20.0, 10.0, 60.0, 100.0),
+                          [("a", (20.0, 10.0, 60.0, 40.0)), ("b", (100.0, 10.0, 30.0, 30.0))])
+    assert "not inside the main region" in page.message.text()
+    page.canvas.set_model((20.0, 10.0, 60.0, 100.0),
+                          [("a", (20.0, 10.0, 60.0, 40.0)), ("b", (20.0, 60.0, 60.0, 40.0))])
+    assert "grey" in page.message.text()
+    assert page.model is not None  # grey is a warning, not an error
+    page.source_edit.setText(SOURCE)
+    page.realtime_check.setChecked(False)
+    with qtbot.waitSignal(page.bridge.started, timeout=20000):
+        assert page.start_tracking() is True
+    with qtbot.waitSignal(page.bridge.finished, timeout=20000):
+        page.stop_tracking()
