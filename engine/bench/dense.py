@@ -1,0 +1,450 @@
+"""``studiotrack bench dense``: the dense RGB-D trackers (Tykkälä 2014) against their peers.
+
+All parts run side by side in one process (timings on a shared machine: medians, noisy,
+compare within one run):
+
+- **rail** (Fig. 13): the built-in studio, rail back and forth for ``--cycles`` cycles, the
+  presenter walking during the last ``--presenter-cycles``. A keyframe store is first built by
+  ``sweep`` on an empty-studio pass (one slow cycle); then, frame by frame on the same
+  rendered frames, ``dense`` (with that store) and ``dense-incremental`` are run and their
+  per-frame translation error to the ground truth recorded. Both start at the first frame's
+  known pose (the studio's start mark).
+- **speed**: on the first ``--speed-frames`` rail frames, the whole per-frame ``track()`` of
+  ``dense`` (pre-processing included, 8192 points, 2/3/10 iterations), ``dense-incremental``
+  and ``opencv-odometry`` on the same frames; median / p95 ms and the speed-up.
+- **real**: ``../shared/data/tum_fr1_xyz_37`` (fr1 intrinsics + distortion): ATE RMSE and RPE
+  (1 s) of ``dense-incremental``, ``opencv-odometry``, ``open3d-odometry`` (and ``dense``
+  building keyframes online, for information).
+- **keyframes** (Fig. 14): stores with decreasing keyframe counts (every k-th keyframe of
+  the sweep store) tracked on an empty-studio cycle: max/mean translation error per count.
+- **memory**: peak RSS of a child process tracking with a store of at least 30 keyframes.
+
+``--plots DIR`` writes ``rail_error.png`` and ``keyframe_count.png`` (matplotlib, Agg).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+NAME = "dense"
+HELP = "dense RGB-D trackers: speed, TUM accuracy, studio rail drift, keyframe count, memory"
+
+SWEEP_CYCLE_S = 12.0  # the empty-studio sweep is a slow pass
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--cycles", type=int, default=10,
+                        help="rail cycles (there and back) of the tracked run (paper: 10)")
+    parser.add_argument("--presenter-cycles", type=float, default=2.0,
+                        help="the presenter walks during the last N cycles")
+    parser.add_argument("--cycle-s", type=float, default=6.0, help="seconds per rail cycle")
+    parser.add_argument("--speed-frames", type=int, default=60,
+                        help="rail frames timed for all three trackers (opencv is slow)")
+    parser.add_argument("--kf-dist", type=float, default=0.10,
+                        help="sweep: new keyframe every this many metres (>= 30 keyframes)")
+    parser.add_argument("--points", type=int, default=8192, help="reference points")
+    parser.add_argument("--skip", default="",
+                        help="comma list of parts to skip: real, rail, keyframes, memory")
+    parser.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots here")
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _shared_data() -> Path:
+    env = os.environ.get("STUDIOTRACK_SHARED_DATA")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+def _stats(ms: list[float]) -> dict[str, float]:
+    a = np.asarray(ms, dtype=np.float64)
+    if a.size == 0:
+        return {"ms_median": float("nan"), "ms_p95": float("nan"), "frames": 0}
+    return {"ms_median": float(np.median(a)), "ms_p95": float(np.percentile(a, 95)),
+            "frames": int(a.size)}
+
+
+def _terr(T: np.ndarray | None, gt: np.ndarray | None) -> float:
+    if T is None or gt is None:
+        return float("nan")
+    return float(np.linalg.norm(np.asarray(T)[:3, 3] - np.asarray(gt)[:3, 3]))
+
+
+# ----------------------------------------------------------------------------- real data
+
+
+def _real(points: int) -> dict[str, Any]:
+    from engine.evaluation.metrics import ate, rpe
+    from engine.evaluation.trajectory import Trajectory, read_tum
+    from engine.sources.tum import TumSource
+    from engine.trackers import create_tracker
+
+    folder = _shared_data() / "tum_fr1_xyz_37"
+    if not folder.is_dir():
+        _log(f"real: {folder} is absent, skipped")
+        return {"skipped": f"{folder} absent"}
+    src = TumSource(folder)
+    frames = list(src.frames())
+    gt = read_tum(folder / "groundtruth.txt")
+    out: dict[str, Any] = {"sequence": folder.name, "frames": len(frames)}
+    for name, kw in (
+        ("dense-incremental", {"n_points": points}),
+        ("opencv-odometry", {}),
+        ("open3d-odometry", {}),
+        ("dense", {"n_points": points}),
+    ):
+        tr = create_tracker(name, **kw)
+        poses, ms, lost = [], [], 0
+        for f in frames:
+            t0 = time.perf_counter()
+            r = tr.track(f)
+            ms.append((time.perf_counter() - t0) * 1e3)
+            poses.append(np.array(r.T_world_cam))
+            lost += 0 if r.state.is_good else 1
+        est = Trajectory.from_poses([f.timestamp_s for f in frames], poses, name=name)
+        a = ate(gt, est)
+        p = rpe(gt, est)
+        out[name] = {
+            "ate_rmse_m": a.rmse_m,
+            "rpe_trans_m_per_s": p.trans_rmse_m_per_s,
+            "rpe_rot_deg_per_s": p.rot_rmse_deg_per_s,
+            "lost_frames": lost,
+            **_stats(ms[1:]),
+        }
+        _log(f"real {name:18s} ATE {a.rmse_m * 1e3:6.2f} mm  RPE {p.trans_rmse_m_per_s * 1e3:6.2f}"
+             f" mm/s  median {np.median(ms[1:]):6.1f} ms  lost {lost}")
+    return out
+
+
+# ------------------------------------------------------------------------------ the rail
+
+
+def _rail_spec(cycles: float, cycle_s: float, presenter_cycles: float) -> str:
+    spec = f"synthetic:seed=3,path=rail,cycles={cycles:g},cycle_s={cycle_s:g}"
+    if presenter_cycles > 0:
+        spec += f",presenter=1,presenter_last_cycles={presenter_cycles:g}"
+    return spec
+
+
+def _sweep_store(points: int, kf_dist: float) -> Any:
+    from engine.dense.sweep import sweep
+    from engine.sources import open_source
+    from engine.trackers.dense import DenseParams
+
+    src = open_source(_rail_spec(1, SWEEP_CYCLE_S, 0))
+    res = sweep(src, DenseParams(n_points=points, kf_add_dist_m=kf_dist))
+    _log(f"sweep: {len(res.store)} keyframes from {res.frames} empty-studio frames "
+         f"({res.lost_frames} lost, {res.seconds:.1f} s)")
+    return res
+
+
+def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    from engine.dense.tracking import DenseKeyframeTracker
+    from engine.sources import open_source
+    from engine.trackers import create_tracker
+    from engine.trackers.dense import DenseParams
+
+    spec = _rail_spec(args.cycles, args.cycle_s, args.presenter_cycles)
+    src = open_source(spec)
+    n = len(src)
+    _log(f"rail: {spec} ({n} frames)")
+    dense = DenseKeyframeTracker(DenseParams(n_points=args.points), store=store)
+    incr = create_tracker("dense-incremental", n_points=args.points)
+    ocv = create_tracker("opencv-odometry")
+    err_d, err_i, ms_d, ms_i, ms_o = [], [], [], [], []
+    lost_d = lost_i = 0
+    presenter = []
+    relock = []
+    cpu_d, cpu_i, cpu_o = [], [], []
+    for f in src.frames():
+        c0, t0 = time.process_time(), time.perf_counter()
+        rd = dense.track(f)
+        c1, t1 = time.process_time(), time.perf_counter()
+        ri = incr.track(f)
+        c2, t2 = time.process_time(), time.perf_counter()
+        if f.index < args.speed_frames:
+            ocv.track(f)
+            if f.index > 0:  # frame 0 is each tracker's initialisation: not timed
+                ms_o.append((time.perf_counter() - t2) * 1e3)
+                cpu_o.append((time.process_time() - c2) * 1e3)
+                ms_d.append((t1 - t0) * 1e3)
+                ms_i.append((t2 - t1) * 1e3)
+                cpu_d.append((c1 - c0) * 1e3)
+                cpu_i.append((c2 - c1) * 1e3)
+        err_d.append(_terr(rd.T_world_cam, f.gt_T_world_cam))
+        err_i.append(_terr(ri.T_world_cam, f.gt_T_world_cam))
+        lost_d += 0 if rd.state.is_good else 1
+        lost_i += 0 if ri.state.is_good else 1
+        if "frames_to_relock" in rd.extras:
+            relock.append(int(rd.extras["frames_to_relock"]))
+        presenter.append(bool(f.extras.get("presenter_pixels") or 0))
+        if f.index % 180 == 0:
+            _log(f"  frame {f.index}/{n}: dense {err_d[-1] * 1e3:.1f} mm, "
+                 f"incremental {err_i[-1] * 1e3:.1f} mm")
+    ed, ei = np.asarray(err_d), np.asarray(err_i)
+    per_cycle = max(1, n // max(1, args.cycles))
+    cyc_d = [float(np.nanmax(ed[k:k + per_cycle])) for k in range(0, n, per_cycle)]
+    cyc_i = [float(np.nanmax(ei[k:k + per_cycle])) for k in range(0, n, per_cycle)]
+    rail = {
+        "spec": spec,
+        "frames": n,
+        "keyframes": len(store),
+        "keyframe_max_err_m": float(np.nanmax(ed)),
+        "keyframe_mean_err_m": float(np.nanmean(ed)),
+        "keyframe_final_err_m": float(ed[-1]),
+        "keyframe_max_err_per_cycle_m": cyc_d,
+        "keyframe_lost_frames": lost_d,
+        "keyframe_relocks": relock,
+        "incremental_final_err_m": float(ei[-1]),
+        "incremental_max_err_m": float(np.nanmax(ei)),
+        "incremental_max_err_per_cycle_m": cyc_i,
+        "incremental_lost_frames": lost_i,
+    }
+    sd, si, so = _stats(ms_d), _stats(ms_i), _stats(ms_o)
+    # CPU time of the process per frame: less sensitive to other jobs on a shared machine
+    # (OpenCV's worker threads are included in its number)
+    for st_, cpu in ((sd, cpu_d), (si, cpu_i), (so, cpu_o)):
+        st_["cpu_ms_median"] = float(np.median(cpu)) if cpu else float("nan")
+    speed = {
+        "frames": spec + f" (first {args.speed_frames})",
+        "dense": sd,
+        "dense_incremental": si,
+        "opencv_odometry": so,
+        "speedup_vs_opencv": so["ms_median"] / sd["ms_median"] if sd["ms_median"] > 0 else None,
+        "cpu_speedup_vs_opencv": (
+            so["cpu_ms_median"] / sd["cpu_ms_median"] if sd["cpu_ms_median"] > 0 else None
+        ),
+    }
+    _log(f"rail: dense max {rail['keyframe_max_err_m'] * 1e3:.2f} mm, incremental final "
+         f"{rail['incremental_final_err_m'] * 1e3:.2f} mm")
+    _log(f"speed (CPU ms): dense {sd['cpu_ms_median']:.1f}, incremental "
+         f"{si['cpu_ms_median']:.1f}, opencv {so['cpu_ms_median']:.1f}")
+    _log(f"speed: dense {sd['ms_median']:.1f} ms (p95 {sd['ms_p95']:.1f}), incremental "
+         f"{si['ms_median']:.1f}, opencv {so['ms_median']:.1f} "
+         f"-> x{speed['speedup_vs_opencv']:.1f}")
+    rail["_series"] = {"dense": ed, "incremental": ei, "presenter": np.asarray(presenter)}
+    return rail, speed
+
+
+def _ground_truth_store(store: Any) -> Any:
+    """The sweep's keyframes with their true poses (the paper's bundle-adjusted keyframes):
+    each keyframe image is found again in the sweep pass and given that frame's truth."""
+    from engine.dense.keyframes import Keyframe, KeyframeStore
+    from engine.sources import open_source
+
+    src = open_source(_rail_spec(1, SWEEP_CYCLE_S, 0))
+    want = {k.id: k for k in store.keyframes}
+    found: dict[int, np.ndarray] = {}
+    for f in src.frames():
+        gray = f.color_bgr if f.color_bgr.ndim == 2 else None
+        for kid, k in want.items():
+            if kid in found:
+                continue
+            if float(np.linalg.norm(k.T_world_cam[:3, 3] - f.gt_T_world_cam[:3, 3])) > 0.02:
+                continue
+            if gray is None:
+                import cv2
+
+                gray = cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY)
+            if np.array_equal(gray, k.gray):
+                found[kid] = np.array(f.gt_T_world_cam)
+    return KeyframeStore(store.intrinsics, [
+        Keyframe(k.id, found.get(k.id, k.T_world_cam), k.gray, k.depth_m)
+        for k in store.keyframes if k.id in found
+    ])
+
+
+def _keyframe_counts(args: argparse.Namespace, store: Any) -> dict[str, Any]:
+    """Fig. 14: stores thinned to every k-th keyframe, tracked on an empty-studio cycle.
+
+    Two families: the sweep's keyframes with their tracked poses, and the same keyframes
+    with their true poses (as the paper's bundle-adjusted ground-truth keyframes), which
+    isolates the keyframe-switching error from the sweep's own pose error.
+    """
+    from engine.dense.tracking import DenseKeyframeTracker
+    from engine.sources import open_source
+    from engine.trackers.dense import DenseParams
+
+    gt_store = _ground_truth_store(store)
+    _log(f"keyframes: {len(gt_store)} of {len(store)} sweep keyframes matched to their truth")
+    subsets: dict[tuple[str, int], Any] = {}
+    for family, st in (("sweep", store), ("true_poses", gt_store)):
+        ids = [k.id for k in st.keyframes]
+        for step in (1, 2, 3, 5, 8):
+            sub = ids[::step]
+            if len(sub) >= 2 and (family, len(sub)) not in subsets:
+                subsets[(family, len(sub))] = st.subset(sub)
+    trackers = {
+        key: DenseKeyframeTracker(DenseParams(n_points=args.points), store=st)
+        for key, st in subsets.items()
+    }
+    errs: dict[tuple[str, int], list[float]] = {key: [] for key in trackers}
+    lost: dict[tuple[str, int], int] = dict.fromkeys(trackers, 0)
+    src = open_source(_rail_spec(1, args.cycle_s, 0))
+    for f in src.frames():
+        for key, tr in trackers.items():
+            r = tr.track(f)
+            errs[key].append(_terr(r.T_world_cam, f.gt_T_world_cam))
+            lost[key] += 0 if r.state.is_good else 1
+    rows = []
+    for key in sorted(errs, key=lambda k: (k[0], -k[1])):
+        e = np.asarray(errs[key])
+        rows.append({"poses": key[0], "keyframes": key[1], "max_err_m": float(np.nanmax(e)),
+                     "mean_err_m": float(np.nanmean(e)), "lost_frames": lost[key]})
+        _log(f"keyframes {key[0]:10s} {key[1]:3d}: max {np.nanmax(e) * 1e3:7.2f} mm, mean "
+             f"{np.nanmean(e) * 1e3:6.2f} mm, lost {lost[key]}")
+    return {"rows": rows}
+
+
+_MEM_CHILD = r"""
+import json, resource, sys
+from pathlib import Path
+import numpy as np
+def rss():
+    # VmHWM: peak RSS of this process image (ru_maxrss would carry the parent's peak
+    # across fork + exec on Linux)
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024.0
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+from engine.camera import Intrinsics
+from engine.dense.tracking import DenseKeyframeTracker
+from engine.frames import Frame
+from engine.trackers.dense import DenseParams
+base = rss()
+folder = Path(sys.argv[2])
+intr = Intrinsics(**json.loads(sys.argv[3]))
+tr = DenseKeyframeTracker(DenseParams(keyframes_dir=sys.argv[1]))
+n = len(tr.store)
+for i in range(int(sys.argv[4])):
+    a = np.load(folder / f"f{i:04d}.npz")
+    tr.track(Frame(i, i / 30.0, a["color"], intr, a["depth"], a["gt"]))
+# every keyframe's reference resident, as after a full pass over the rail
+for kf in tr.store.keyframes:
+    tr._reference(kf)
+print(json.dumps({"peak_rss_mb": rss(), "after_imports_mb": base, "keyframes": n}))
+"""
+
+
+def _memory(store: Any, frames: list[Any]) -> dict[str, Any]:
+    with tempfile.TemporaryDirectory(prefix="studiotrack-bench-dense-") as tmp:
+        store.save(Path(tmp) / "kf")
+        for i, f in enumerate(frames):
+            np.savez(Path(tmp) / f"f{i:04d}.npz", color=np.asarray(f.color_bgr),
+                     depth=np.asarray(f.depth_m), gt=np.asarray(f.gt_T_world_cam))
+        intr = dataclasses.asdict(frames[0].intrinsics)
+        out = subprocess.run(
+            [sys.executable, "-c", _MEM_CHILD, str(Path(tmp) / "kf"), tmp, json.dumps(intr),
+             str(len(frames))],
+            capture_output=True, text=True, check=False, timeout=600,
+        )
+    if out.returncode != 0:
+        _log(f"memory: child failed: {out.stderr.strip().splitlines()[-1:]}")
+        return {"peak_rss_mb": None, "error": out.stderr.strip()[-300:]}
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    _log(f"memory: peak RSS {res['peak_rss_mb']:.0f} MB with {res['keyframes']} keyframes "
+         f"({res['after_imports_mb']:.0f} MB after imports)")
+    return res
+
+
+def _plots(folder: Path, rail: dict[str, Any] | None, kfc: dict[str, Any] | None,
+           cycle_frames: int) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    if rail is not None:
+        s = rail["_series"]
+        fig, ax = plt.subplots(figsize=(10, 4))
+        x = np.arange(len(s["dense"]))
+        ax.plot(x, s["incremental"] * 100, color="tab:red", lw=1, label="incremental (Alg. 2)")
+        ax.plot(x, s["dense"] * 100, color="tab:green", lw=1,
+                label=f"keyframes (Alg. 3, {rail['keyframes']} keyframes)")
+        if s["presenter"].any():
+            on = np.flatnonzero(s["presenter"])
+            ax.axvspan(on[0], on[-1], color="0.9", label="presenter in view")
+        for c in range(cycle_frames, len(x), cycle_frames):
+            ax.axvline(c, color="0.7", lw=0.5)
+        ax.set_xlabel("frame")
+        ax.set_ylabel("translation error (cm)")
+        ax.set_title("Studio rail back and forth (cf. Tykkälä 2014 Fig. 13)")
+        ax.legend(loc="upper left")
+        fig.tight_layout()
+        p = folder / "rail_error.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(str(p))
+    if kfc is not None and kfc["rows"]:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        for family, colour in (("sweep", "tab:blue"), ("true_poses", "tab:orange")):
+            rows = [r for r in kfc["rows"] if r["poses"] == family]
+            if not rows:
+                continue
+            cnt = [r["keyframes"] for r in rows]
+            label = "tracked poses" if family == "sweep" else "true poses"
+            ax.plot(cnt, [r["max_err_m"] * 100 for r in rows], "o-", color=colour,
+                    label=f"max, {label}")
+            ax.plot(cnt, [r["mean_err_m"] * 100 for r in rows], "s--", color=colour,
+                    label=f"mean, {label}")
+        ax.set_xlabel("keyframes")
+        ax.set_ylabel("translation error (cm)")
+        ax.set_title("Keyframe count vs switching error (cf. Fig. 14)")
+        ax.legend()
+        fig.tight_layout()
+        p = folder / "keyframe_count.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(str(p))
+    return written
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.sources import open_source
+
+    skip = {s.strip() for s in str(args.skip).split(",") if s.strip()}
+    t_start = time.perf_counter()
+    out: dict[str, Any] = {"points": args.points, "iterations": [2, 3, 10]}
+    rail = kfc = None
+    if "real" not in skip:
+        out["real"] = _real(args.points)
+    sw = _sweep_store(args.points, args.kf_dist)
+    out["sweep"] = {"keyframes": len(sw.store), "frames": sw.frames, "lost": sw.lost_frames}
+    if "rail" not in skip:
+        rail, speed = _rail(args, sw.store)
+        out["rail"] = {k: v for k, v in rail.items() if not k.startswith("_")}
+        out["speed"] = speed
+    if "keyframes" not in skip:
+        kfc = _keyframe_counts(args, sw.store)
+        out["keyframe_count"] = kfc
+    if "memory" not in skip:
+        src = open_source(_rail_spec(1, args.cycle_s, 0))
+        frames = []
+        for f in src.frames():
+            frames.append(f)
+            if len(frames) >= 30:
+                break
+        mem = _memory(sw.store, frames)
+        out["peak_rss_mb"] = mem.get("peak_rss_mb")
+        out["memory"] = mem
+    if args.plots:
+        per_cycle = round(args.cycle_s * 30)
+        out["plots"] = _plots(Path(args.plots), rail, kfc, per_cycle)
+    out["seconds"] = time.perf_counter() - t_start
+    return out

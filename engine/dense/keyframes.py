@@ -1,0 +1,299 @@
+"""Keyframe database of Tykkälä 2014 sec. 6: storage and nearest-keyframe search.
+
+Store layout (a folder, written atomically file by file, ``keyframes.json`` last so that it
+is the commit point)::
+
+    keyframes.json        {"format": "studiotrack-keyframes", "version": 1,
+                           "intrinsics": {...camera.json keys...},
+                           "keyframes": [{"id": 0, "T_world_cam": [[...4x4...]],
+                                          "gray": "kf_0000_gray.png",
+                                          "depth": "kf_0000_depth.png"}, ...]}
+    kf_0000_gray.png      8-bit grey image (full resolution)
+    kf_0000_depth.png     16-bit depth, metres * depth_scale (0 = invalid)
+
+Nearest keyframe (sec. 6.2): pre-selection by angle and distance, eq. (19)-(20), then the
+view-frustum test-point metric of eq. (21) over three 2D point grids at depths spanning the
+sensor range (Fig. 12).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import Intrinsics
+from engine.errors import CalibrationError, TrackerError
+from engine.geometry import invert, rotation_angle_rad
+
+F64 = NDArray[np.float64]
+
+STORE_FORMAT = "studiotrack-keyframes"
+STORE_VERSION = 1
+INDEX_NAME = "keyframes.json"
+
+#: depths (m) of the three test-point grids of eq. (21), uniform in a Kinect-like range
+FRUSTUM_DEPTHS_M = (1.0, 2.5, 4.0)
+_GRID_NX, _GRID_NY = 6, 5
+
+
+class KeyframeStoreError(TrackerError):
+    """A keyframe store cannot be read or written (missing, corrupt or incompatible)."""
+
+
+@dataclass
+class Keyframe:
+    """One keyframe K = {P*, c*, T*} (the points are selected lazily from the images)."""
+
+    id: int
+    T_world_cam: F64
+    gray: NDArray[np.uint8]
+    depth_m: NDArray[np.float32]
+    _reference: object | None = field(default=None, repr=False)
+
+
+def frustum_test_points(intr: Intrinsics, depths_m: tuple[float, ...] = FRUSTUM_DEPTHS_M) -> F64:
+    """Three 2D grids of 3D points along viewing rays at the given depths (Fig. 12)."""
+    us = np.linspace(0.1, 0.9, _GRID_NX) * intr.width
+    vs = np.linspace(0.1, 0.9, _GRID_NY) * intr.height
+    u, v = np.meshgrid(us, vs)
+    x = (u.ravel() - intr.cx) / intr.fx
+    y = (v.ravel() - intr.cy) / intr.fy
+    pts = [np.stack([x * z, y * z, np.full_like(x, z)], axis=1) for z in depths_m]
+    return np.concatenate(pts, axis=0)
+
+
+def _pinhole(intr: Intrinsics, p: F64) -> F64:
+    z = np.maximum(p[:, 2], 1e-6)
+    return np.stack([intr.fx * p[:, 0] / z + intr.cx, intr.fy * p[:, 1] / z + intr.cy], axis=1)
+
+
+def frustum_metric(intr: Intrinsics, T_world_cam: F64, T_world_kf: F64, test_pts: F64) -> float:
+    """Eq. (21): mean 2D discrepancy ||w(P; dT_k) - w(P; I)|| of the test points (pixels)."""
+    T_kf_cam = invert(T_world_kf) @ T_world_cam  # eq. (19) in our T_world_cam convention
+    q = test_pts @ T_kf_cam[:3, :3].T + T_kf_cam[:3, 3]
+    behind = q[:, 2] <= 0.05
+    d = np.linalg.norm(_pinhole(intr, q) - _pinhole(intr, test_pts), axis=1)
+    d[behind] = 10.0 * (intr.width + intr.height)
+    return float(np.mean(d))
+
+
+def pose_distance(T_a: F64, T_b: F64) -> tuple[float, float]:
+    """(angle rad, distance m) between two poses: theta_k and ||d_k|| of eq. (19)."""
+    dT = invert(T_b) @ T_a
+    return rotation_angle_rad(dT[:3, :3]), float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3]))
+
+
+class KeyframeStore:
+    """Keyframes of one camera with lazily precomputed references and eq. (19)-(21) search."""
+
+    def __init__(self, intrinsics: Intrinsics, keyframes: list[Keyframe] | None = None) -> None:
+        self.intrinsics = intrinsics
+        self.keyframes: list[Keyframe] = list(keyframes or [])
+        self._test_pts = frustum_test_points(intrinsics)
+
+    def __len__(self) -> int:
+        return len(self.keyframes)
+
+    def by_id(self, kf_id: int) -> Keyframe:
+        for kf in self.keyframes:
+            if kf.id == kf_id:
+                return kf
+        raise KeyError(kf_id)
+
+    def add(
+        self, T_world_cam: F64, gray: NDArray[np.uint8], depth_m: NDArray[np.float32]
+    ) -> Keyframe:
+        kf_id = 1 + max((k.id for k in self.keyframes), default=-1)
+        kf = Keyframe(kf_id, np.array(T_world_cam, dtype=np.float64), gray, depth_m)
+        self.keyframes.append(kf)
+        return kf
+
+    def subset(self, ids: list[int]) -> KeyframeStore:
+        """A store with only the given keyframes (sharing their cached references)."""
+        keep = set(ids)
+        return KeyframeStore(self.intrinsics, [k for k in self.keyframes if k.id in keep])
+
+    # -- search, sec. 6.2 ------------------------------------------------------------------
+    def _scores(self, T_world_cam: F64) -> tuple[F64, F64, F64]:
+        """(theta_k rad, ||d_k|| m, eq. (21) metric px) of every keyframe, vectorised."""
+        Tk = np.stack([k.T_world_cam for k in self.keyframes])  # (K, 4, 4)
+        Rk = Tk[:, :3, :3]
+        tk = Tk[:, :3, 3]
+        R = T_world_cam[:3, :3]
+        t = T_world_cam[:3, 3]
+        # dT_k = T_kf_cam = T_kf_world T_world_cam, eq. (19)
+        R_kc = np.einsum("kji,jl->kil", Rk, R)
+        t_kc = np.einsum("kji,kj->ki", Rk, t - tk)
+        theta = np.arccos(np.clip((np.trace(R_kc, axis1=1, axis2=2) - 1.0) * 0.5, -1.0, 1.0))
+        dist = np.linalg.norm(t - tk, axis=1)
+        P = self._test_pts
+        q = np.einsum("kij,nj->kni", R_kc, P) + t_kc[:, None, :]
+        intr = self.intrinsics
+        z = np.maximum(q[..., 2], 1e-6)
+        uv = np.stack([intr.fx * q[..., 0] / z + intr.cx, intr.fy * q[..., 1] / z + intr.cy], -1)
+        d = np.linalg.norm(uv - _pinhole(intr, P)[None], axis=2)
+        d[q[..., 2] <= 0.05] = 10.0 * (intr.width + intr.height)
+        return theta, dist, d.mean(axis=1)
+
+    def ranked(self, T_world_cam: F64) -> list[tuple[float, Keyframe]]:
+        """All keyframes sorted by the eq. (21) metric from ``T_world_cam``."""
+        if not self.keyframes:
+            return []
+        _, _, metric = self._scores(T_world_cam)
+        order = np.argsort(metric, kind="stable")
+        return [(float(metric[i]), self.keyframes[i]) for i in order]
+
+    def nearest(
+        self, T_world_cam: F64, theta_max_rad: float, d_max_m: float
+    ) -> tuple[Keyframe | None, bool]:
+        """Nearest keyframe s of eq. (21) among the pre-selected set Omega of eq. (20).
+
+        Returns (keyframe, in_omega); when Omega is empty the overall nearest keyframe is
+        returned with ``in_omega=False``.
+        """
+        if not self.keyframes:
+            return None, False
+        theta, dist, metric = self._scores(T_world_cam)
+        omega = (np.abs(theta) < theta_max_rad) & (dist < d_max_m)  # eq. (20)
+        pool = np.flatnonzero(omega) if omega.any() else np.arange(len(self.keyframes))
+        best = int(pool[np.argmin(metric[pool])])  # eq. (21)
+        return self.keyframes[best], bool(omega.any())
+
+    def far_from_all(self, T_world_cam: F64, angle_rad: float, dist_m: float) -> bool:
+        """True if the pose differs from every keyframe by more than the angle or distance."""
+        for k in self.keyframes:
+            th, d = pose_distance(T_world_cam, k.T_world_cam)
+            if th < angle_rad and d < dist_m:
+                return False
+        return True
+
+    # -- persistence ---------------------------------------------------------------------
+    def save(self, folder: str | Path) -> Path:
+        """Write the store atomically (images first, the JSON index last)."""
+        from engine.persist import atomic_write_json, atomic_write_png
+
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        scale = self.intrinsics.depth_scale
+        entries = []
+        for kf in self.keyframes:
+            gname = f"kf_{kf.id:04d}_gray.png"
+            dname = f"kf_{kf.id:04d}_depth.png"
+            atomic_write_png(folder / gname, np.ascontiguousarray(kf.gray, dtype=np.uint8))
+            d16 = np.clip(np.nan_to_num(kf.depth_m) * scale, 0, 65535).round().astype(np.uint16)
+            atomic_write_png(folder / dname, d16)
+            entries.append(
+                {"id": kf.id, "T_world_cam": kf.T_world_cam.tolist(), "gray": gname,
+                 "depth": dname}
+            )
+        index = {
+            "format": STORE_FORMAT,
+            "version": STORE_VERSION,
+            "intrinsics": self.intrinsics.to_json_dict(),
+            "keyframes": entries,
+        }
+        atomic_write_json(folder / INDEX_NAME, index)
+        return folder / INDEX_NAME
+
+    @classmethod
+    def load(cls, folder: str | Path) -> KeyframeStore:
+        """Read a store; a missing, corrupt or incompatible one raises KeyframeStoreError."""
+        import cv2
+
+        folder = Path(folder)
+        index_path = folder / INDEX_NAME
+        if not folder.is_dir():
+            raise KeyframeStoreError(f"{folder}: keyframe store folder not found")
+        try:
+            raw = json.loads(index_path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise KeyframeStoreError(f"{index_path}: not found (not a keyframe store?)") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise KeyframeStoreError(f"{index_path}: cannot read ({exc})") from None
+        except json.JSONDecodeError as exc:
+            raise KeyframeStoreError(
+                f"{index_path}: corrupt JSON at line {exc.lineno} ({exc.msg})"
+            ) from None
+        if not isinstance(raw, dict) or raw.get("format") != STORE_FORMAT:
+            raise KeyframeStoreError(f"{index_path}: not a {STORE_FORMAT} index")
+        version = raw.get("version")
+        if version != STORE_VERSION:
+            raise KeyframeStoreError(
+                f"{index_path}: store version {version!r} is not supported "
+                f"(expected {STORE_VERSION})"
+            )
+        intr = _intrinsics_from(raw.get("intrinsics"), index_path)
+        entries = raw.get("keyframes")
+        if not isinstance(entries, list) or not entries:
+            raise KeyframeStoreError(f"{index_path}: 'keyframes' must be a non-empty list")
+        kfs: list[Keyframe] = []
+        for n, ent in enumerate(entries):
+            where = f"{index_path}: keyframe #{n}"
+            try:
+                kf_id = int(ent["id"])
+                T = np.asarray(ent["T_world_cam"], dtype=np.float64)
+                gname, dname = str(ent["gray"]), str(ent["depth"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise KeyframeStoreError(f"{where} is malformed ({exc!s})") from None
+            if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+                raise KeyframeStoreError(f"{where}: T_world_cam must be a finite 4x4 matrix")
+            R = T[:3, :3]
+            if not np.allclose(R.T @ R, np.eye(3), atol=1e-5) or not math.isclose(
+                float(np.linalg.det(R)), 1.0, abs_tol=1e-5
+            ):
+                raise KeyframeStoreError(f"{where}: T_world_cam rotation is not orthonormal")
+            for name in (gname, dname):
+                if "/" in name or "\\" in name or name.startswith("."):
+                    raise KeyframeStoreError(f"{where}: bad file name {name!r}")
+            gray = cv2.imread(str(folder / gname), cv2.IMREAD_UNCHANGED)
+            depth = cv2.imread(str(folder / dname), cv2.IMREAD_UNCHANGED)
+            if gray is None:
+                raise KeyframeStoreError(f"{folder / gname}: missing or not a readable PNG")
+            if depth is None:
+                raise KeyframeStoreError(f"{folder / dname}: missing or not a readable PNG")
+            if gray.dtype != np.uint8 or gray.ndim != 2:
+                raise KeyframeStoreError(f"{folder / gname}: expected an 8-bit grey image")
+            if depth.dtype != np.uint16 or depth.ndim != 2:
+                raise KeyframeStoreError(f"{folder / dname}: expected a 16-bit depth image")
+            if gray.shape != (intr.height, intr.width) or depth.shape != gray.shape:
+                raise KeyframeStoreError(
+                    f"{folder / gname}: size {gray.shape[1]}x{gray.shape[0]} does not match the "
+                    f"store's {intr.width}x{intr.height}"
+                )
+            depth_m = depth.astype(np.float32) / np.float32(intr.depth_scale)
+            kfs.append(Keyframe(kf_id, T, gray, depth_m))
+        ids = [k.id for k in kfs]
+        if len(set(ids)) != len(ids):
+            raise KeyframeStoreError(f"{index_path}: duplicate keyframe ids")
+        return cls(intr, kfs)
+
+
+def _intrinsics_from(d: object, where: Path) -> Intrinsics:
+    if not isinstance(d, dict):
+        raise KeyframeStoreError(f"{where}: 'intrinsics' must be an object")
+    try:
+        dist = d.get("distortion", [0.0] * 5)
+        return Intrinsics(
+            fx=float(d["fx"]),
+            fy=float(d["fy"]),
+            cx=float(d["cx"]),
+            cy=float(d["cy"]),
+            width=int(d["width"]),
+            height=int(d["height"]),
+            dist_k1k2p1p2k3=tuple(float(v) for v in dist),  # type: ignore[arg-type]
+            depth_scale=float(d.get("depth_scale", 5000.0)),
+        )
+    except (KeyError, TypeError, ValueError, CalibrationError) as exc:
+        raise KeyframeStoreError(f"{where}: bad intrinsics ({exc!s})") from None
+
+
+def same_camera(a: Intrinsics, b: Intrinsics, tol: float = 1e-6) -> bool:
+    """Whether two calibrations are interchangeable for a keyframe store."""
+    va = [a.fx, a.fy, a.cx, a.cy, a.width, a.height, *a.dist_k1k2p1p2k3]
+    vb = [b.fx, b.fy, b.cx, b.cy, b.width, b.height, *b.dist_k1k2p1p2k3]
+    return all(abs(x - y) <= tol * max(1.0, abs(x)) for x, y in zip(va, vb, strict=True))

@@ -1,0 +1,217 @@
+"""Reference model and inverse-compositional minimisation (Tykkälä 2014 sec. 3, Algorithm 1).
+
+A :class:`Reference` holds the selected 3D points P* (reference camera frame, metres) and, per
+pyramid level, their intensities c* and the Jacobian of eq. (6), computed once. :func:`align`
+runs Algorithm 1 against a current frame and returns the base transform T^ = T_cur_ref.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import Intrinsics, undistort_normalized
+from engine.dense import pyramid as pyr
+from engine.dense.selection import gradient_magnitude, select_points
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+
+
+@dataclass(frozen=True, slots=True)
+class Preprocessed:
+    """A frame after pre-processing: grey pyramid (3 levels) and full-resolution depth."""
+
+    levels: tuple[F32, F32, F32]
+    depth_m: F32
+    intrinsics: Intrinsics
+
+
+def preprocess(gray_full: F32, depth_m: NDArray[np.floating], intr: Intrinsics) -> Preprocessed:
+    """Sec. 4.6 pre-processing of one RGB-D frame (depth is kept at full resolution)."""
+    if gray_full.shape != (intr.height, intr.width):
+        raise ValueError(
+            f"image is {gray_full.shape[1]}x{gray_full.shape[0]} but the intrinsics say "
+            f"{intr.width}x{intr.height}"
+        )
+    depth = np.ascontiguousarray(depth_m, dtype=np.float32)
+    return Preprocessed(pyr.build_pyramid(gray_full), depth, intr)
+
+
+@functools.lru_cache(maxsize=8)
+def _level0_rays(intr: Intrinsics) -> tuple[F64, NDArray[np.int64], NDArray[np.int64]]:
+    """Undistorted normalised rays of the full-resolution pixels under the level-0 grid.
+
+    Level-0 pixel (u1, v1) samples full-resolution pixel (2 u1, 2 v1), where the depth was
+    measured; the 3D point is back-projected there (the inverse of eq. (2)-(4)).
+    """
+    h0, w0 = intr.height // 2, intr.width // 2
+    u1, v1 = np.meshgrid(np.arange(w0), np.arange(h0))
+    uf = (2 * u1).ravel().astype(np.float64)
+    vf = (2 * v1).ravel().astype(np.float64)
+    xy = np.stack([(uf - intr.cx) / intr.fx, (vf - intr.cy) / intr.fy], axis=1)
+    if intr.has_distortion:
+        xy = undistort_normalized(xy, intr.dist)
+    return xy, (2 * u1).ravel(), (2 * v1).ravel()
+
+
+def cam_vector(intr: Intrinsics) -> F64:
+    return np.array([intr.fx, intr.fy, intr.cx, intr.cy], dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class Reference:
+    """Selected points P* with c* and J per level (eq. (6)), computed once per reference."""
+
+    P: F64  # (n, 3) reference camera frame
+    cstar: F64  # (3, n)
+    J: F64  # (3, n, 6)
+    uv_full: F64  # (n, 2) pixels of the points in the reference image
+    intrinsics: Intrinsics
+    n_requested: int
+    extras: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(self.P.shape[0])
+
+
+def build_reference(
+    pre: Preprocessed,
+    n_points: int,
+    *,
+    min_depth_m: float = 0.3,
+    max_depth_m: float = 8.0,
+    border_px: int = 4,
+    max_edge_depth_ratio: float = 0.05,
+    T_color_depth: F64 | None = None,
+) -> Reference:
+    """Select the ``n_points`` strongest-gradient points with valid depth (sec. 4.5, eq. (14))
+    and precompute c* and the Jacobian of eq. (6) at every level."""
+    from engine.dense import kernels
+
+    intr = pre.intrinsics
+    l0 = pre.levels[0]
+    h0, w0 = l0.shape
+    xy, uf, vf = _level0_rays(intr)
+    z = pre.depth_m[vf, uf].astype(np.float64)
+    cand = (z > min_depth_m) & (z < max_depth_m)
+    if max_edge_depth_ratio > 0.0:
+        # points on depth discontinuities have unreliable 3D positions (mixed foreground and
+        # background depth, sensor/colour misregistration): keep points whose 5x5
+        # neighbourhood spans less than ``max_edge_depth_ratio`` of their depth
+        import cv2
+
+        d = pre.depth_m
+        kernel = np.ones((5, 5), np.uint8)
+        dmax = cv2.dilate(d, kernel)[vf, uf]
+        dmin = cv2.erode(np.where(d > 0, d, np.float32(1e6)).astype(np.float32), kernel)[vf, uf]
+        cand &= (dmax - dmin) < max_edge_depth_ratio * z
+    cand = cand.reshape(h0, w0)
+    b = max(border_px, 2)
+    cand[:b, :] = False
+    cand[-b:, :] = False
+    cand[:, :b] = False
+    cand[:, -b:] = False
+    g = gradient_magnitude(l0)
+    cand &= g > 0.0
+    idx = select_points(g, cand, n_points)
+    zi = z[idx]
+    P = np.stack([xy[idx, 0] * zi, xy[idx, 1] * zi, zi], axis=1)
+    if T_color_depth is not None:
+        # depth captured at another instant than the colour image: move the points into the
+        # colour camera's pose (time-offset compensation, not in the paper)
+        P = P @ T_color_depth[:3, :3].T + T_color_depth[:3, 3]
+    P = np.ascontiguousarray(P)
+    n = P.shape[0]
+    cstar = np.zeros((3, n))
+    J = np.zeros((3, n, 6))
+    kernels.precompute_reference(
+        P, pre.levels[0], pre.levels[1], pre.levels[2], cam_vector(intr), intr.dist,
+        pyr.level_scales(), cstar, J,
+    )
+    uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float64)
+    return Reference(P, cstar, J, uv, intr, n_points)
+
+
+def orthonormalize(T: F64) -> F64:
+    """Project the rotation of a rigid transform back onto SO(3) (nearest, by SVD).
+
+    Poses are composed with ``invert`` (which uses R^T); without this, float round-off in
+    chained compositions is amplified about threefold per reference update.
+    """
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        U[:, -1] = -U[:, -1]
+        R = U @ Vt
+    out = np.array(T, dtype=np.float64)
+    out[:3, :3] = R
+    out[3] = (0.0, 0.0, 0.0, 1.0)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class AlignResult:
+    """Result of Algorithm 1 for one frame."""
+
+    T_cur_ref: F64
+    median_abs_e: float  # grey levels (0-255), level 0
+    valid_fraction: float  # points projecting inside the image
+    inlier_fraction: float  # points with weight > 0.1
+    rms: float  # weighted RMS residual (grey levels)
+    ok: bool  # linear system solvable, finite
+    iterations: int
+    weights: F32  # (n,) W = w_c w_z in [0, 1]
+    uv_full: F32  # (n, 2) warped points in the current full-resolution image
+    residuals: F32  # (n,)
+    brightness_offset: float = 0.0  # removed global offset (grey levels), finest level
+
+
+def align(
+    ref: Reference,
+    pre: Preprocessed,
+    T0_cur_ref: F64,
+    iterations_fine_to_coarse: tuple[int, int, int],
+    *,
+    tau_m: float = 0.05,
+    missing_depth_weight: float = 1.0,
+    use_depth: bool = True,
+    min_residual_scale: float = 0.0,
+    brightness_offset: bool = False,
+) -> AlignResult:
+    """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1)."""
+    from engine.dense import kernels
+
+    intr = pre.intrinsics
+    n = ref.n
+    w = np.zeros(n)
+    uv = np.zeros((n, 2))
+    e = np.zeros(n)
+    T, st = kernels.minimize(
+        ref.P, ref.cstar, ref.J, pre.levels[0], pre.levels[1], pre.levels[2], pre.depth_m,
+        cam_vector(intr), intr.dist, pyr.level_scales(),
+        np.asarray(iterations_fine_to_coarse, dtype=np.int64),
+        np.ascontiguousarray(T0_cur_ref, dtype=np.float64), float(tau_m),
+        float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
+        bool(brightness_offset), w, uv, e,
+    )
+    ok = bool(st[4] > 0.5) and bool(np.all(np.isfinite(T)))
+    if ok:
+        T = orthonormalize(T)
+    return AlignResult(
+        T_cur_ref=T,
+        median_abs_e=float(st[0]),
+        valid_fraction=float(st[1]),
+        inlier_fraction=float(st[2]),
+        rms=float(st[3]),
+        ok=ok,
+        iterations=int(st[5]),
+        weights=w.astype(np.float32),
+        uv_full=uv.astype(np.float32),
+        residuals=e.astype(np.float32),
+        brightness_offset=float(st[7]),
+    )

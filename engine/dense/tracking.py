@@ -1,0 +1,523 @@
+"""The dense trackers: incremental (Algorithm 2) and keyframe (Algorithm 3), with loss
+detection and relocalisation.
+
+Loss: a frame is *bad* when the linear system cannot be solved, the pose is not finite, the
+inlier fraction falls below ``min_inlier_fraction``, the median |residual| exceeds
+``max_median_residual`` (grey levels), or the pose jumps more than ``max_step_m`` /
+``max_step_deg`` from its initial guess (divergence). A bad frame reports LOST and holds the
+last good pose (never extrapolated). While lost, each frame tries the nearest keyframes to
+the last good pose (``relocalize_candidates``, eq. (21) order); a success is reported as
+RELOCALIZING for ``relock_confirm_frames`` frames, then TRACKING. ``extras`` carries
+``frames_to_relock`` on the frame that relocked.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import Intrinsics
+from engine.dense import photometric as ph
+from engine.dense.keyframes import Keyframe, KeyframeStore, KeyframeStoreError, same_camera
+from engine.dense.pyramid import gray_from_bgr
+from engine.errors import TrackerError
+from engine.frames import Frame
+from engine.geometry import invert, rotation_angle_rad, se3_exp, se3_log
+from engine.trackers.base import Overlay, TrackResult, TrackState
+from engine.trackers.dense import DenseParams
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class _Attempt:
+    res: ph.AlignResult
+    good: bool
+    why: str
+
+
+def _check(
+    res: ph.AlignResult, T0: F64, p: DenseParams, max_residual: float
+) -> tuple[bool, str]:
+    if not res.ok or not np.all(np.isfinite(res.T_cur_ref)):
+        return False, "diverged (singular system)"
+    if res.inlier_fraction < p.min_inlier_fraction:
+        return False, f"inliers {res.inlier_fraction:.2f} < {p.min_inlier_fraction:.2f}"
+    if res.median_abs_e > max_residual:
+        return False, f"residual {res.median_abs_e:.1f} > {max_residual:.1f}"
+    if abs(res.brightness_offset) > p.max_brightness_offset:
+        # an exposure step is a few grey levels; a covered or swapped view is not
+        return False, f"brightness jump {res.brightness_offset:.1f}"
+    dT = invert(T0) @ res.T_cur_ref
+    if float(np.linalg.norm(dT[:3, 3])) > p.max_step_m:
+        return False, "diverged (translation jump)"
+    if math.degrees(rotation_angle_rad(dT[:3, :3])) > p.max_step_deg:
+        return False, "diverged (rotation jump)"
+    return True, ""
+
+
+class _DenseBase:
+    """Shared frame handling, state machine and result assembly."""
+
+    name = "dense-base"
+
+    def __init__(self, params: DenseParams) -> None:
+        if not isinstance(params, DenseParams):
+            raise TrackerError(f"{self.name}: expected DenseParams, got {type(params).__name__}")
+        self._params = params
+        self._pending: DenseParams | None = None
+        self.reset()
+
+    @property
+    def params(self) -> DenseParams:
+        return self._pending or self._params
+
+    def set_params(self, params: Any) -> None:
+        if not isinstance(params, DenseParams):
+            raise TrackerError(f"{self.name}: expected DenseParams, got {type(params).__name__}")
+        self._pending = params
+
+    def reset(self) -> None:
+        self._intr: Intrinsics | None = None
+        self._T_world_good: F64 | None = None
+        self._lost_frames = 0
+        self._confirm_left = 0
+        self._velocity: F64 | None = None
+        self._last_good_stamped: tuple[float, F64] | None = None
+        self._last_step: F64 | None = None
+        self._typical_residual: float | None = None
+
+    def _apply_pending(self) -> bool:
+        """Swap in new params; True if the reference must be rebuilt."""
+        if self._pending is None:
+            return False
+        old, self._params, self._pending = self._params, self._pending, None
+        return (old.n_points, old.min_depth_m, old.max_depth_m) != (
+            self._params.n_points, self._params.min_depth_m, self._params.max_depth_m
+        )
+
+    def _prepare(self, frame: Frame) -> ph.Preprocessed:
+        if frame.color_bgr is None:
+            raise TrackerError(f"{self.name}: frame {frame.index} has no image")
+        if frame.depth_m is None:
+            raise TrackerError(f"{self.name}: frame {frame.index} has no depth (needs RGB-D)")
+        intr = frame.intrinsics or self._intr
+        if intr is None:
+            raise TrackerError(f"{self.name}: frame {frame.index} has no intrinsics")
+        self._intr = intr
+        return ph.preprocess(gray_from_bgr(frame.color_bgr), frame.depth_m, intr)
+
+    def _build_reference(
+        self, pre: ph.Preprocessed, frame: Frame | None = None
+    ) -> ph.Reference:
+        p = self._params
+        return ph.build_reference(
+            pre, p.n_points, min_depth_m=p.min_depth_m, max_depth_m=p.max_depth_m,
+            T_color_depth=self._depth_delay_transform(frame),
+        )
+
+    def _note_good_pose(
+        self, frame: Frame, T_world_cam: F64, res: ph.AlignResult | None = None
+    ) -> None:
+        """Remember the last two good poses (motion model, depth-delay compensation) and the
+        typical residual."""
+        prev = self._last_good_stamped
+        self._last_step = None
+        if prev is not None and frame.timestamp_s > prev[0]:
+            dt = frame.timestamp_s - prev[0]
+            step = invert(prev[1]) @ T_world_cam
+            xi = se3_log(step) / dt  # body twist per second
+            self._velocity = xi if np.all(np.isfinite(xi)) else None
+            if self._lost_frames == 0 and self._velocity is not None:
+                self._last_step = step
+        self._last_good_stamped = (frame.timestamp_s, np.array(T_world_cam))
+        if res is not None:
+            r = res.median_abs_e
+            t = self._typical_residual
+            self._typical_residual = r if t is None else 0.9 * t + 0.1 * r
+
+    def _depth_delay_transform(self, frame: Frame | None) -> F64 | None:
+        if frame is None or not self._params.compensate_depth_delay or self._velocity is None:
+            return None
+        t_depth = frame.extras.get("depth_timestamp_s") if frame.extras else None
+        if t_depth is None:
+            return None
+        dt = float(t_depth) - float(frame.timestamp_s)
+        if not math.isfinite(dt) or abs(dt) > 0.1:
+            return None
+        return se3_exp(self._velocity * dt)  # T_color_depth = exp(xi (t_d - t_c))
+
+    def _align(self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64) -> _Attempt:
+        p = self._params
+        res = ph.align(
+            ref, pre, T0, p.iterations_fine_to_coarse, tau_m=p.tau_m,
+            use_depth=p.use_depth_weights, min_residual_scale=p.min_residual_scale,
+            brightness_offset=p.brightness_offset,
+        )
+        good, why = _check(res, T0, p, self._max_residual())
+        return _Attempt(res, good, why)
+
+    def _max_residual(self) -> float:
+        """Loss threshold on the median |residual|: the absolute cap, or a multiple of the
+        residual typical of this sequence when that is lower (synthetic images have tiny
+        residuals; a wrong relock there is still far below the absolute cap)."""
+        p = self._params
+        if self._typical_residual is None:
+            return p.max_median_residual
+        return min(p.max_median_residual, max(4.0, p.residual_ratio * self._typical_residual))
+
+    def _predict(self) -> F64:
+        """Initial guess of the current pose: constant velocity from the last two good
+        frames (``motion_model``) or the last good pose. Only an initial guess: the output
+        is never extrapolated."""
+        assert self._T_world_good is not None
+        if not self._params.motion_model or self._last_step is None:
+            return self._T_world_good
+        return self._T_world_good @ self._last_step
+
+    def _initial_pose(self, frame: Frame) -> F64:
+        if self._params.anchor_to_ground_truth and frame.gt_T_world_cam is not None:
+            return np.array(frame.gt_T_world_cam, dtype=np.float64)
+        return np.eye(4)
+
+    def _good_state(self, extras: dict[str, Any]) -> TrackState:
+        """State after a good frame, handling relock bookkeeping."""
+        if self._lost_frames > 0:
+            extras["frames_to_relock"] = self._lost_frames
+            self._lost_frames = 0
+            self._confirm_left = self._params.relock_confirm_frames
+        if self._confirm_left > 0:
+            self._confirm_left -= 1
+            return TrackState.RELOCALIZING
+        return TrackState.TRACKING
+
+    def _result(
+        self,
+        state: TrackState,
+        T_world_cam: F64 | None,
+        att: _Attempt | None,
+        kf_id: int | None,
+        timings: dict[str, float],
+        extras: dict[str, Any],
+    ) -> TrackResult:
+        overlay = None
+        residual = inlier = None
+        if att is not None:
+            r = att.res
+            residual = r.median_abs_e
+            inlier = r.inlier_fraction
+            uv = r.uv_full
+            intr = self._intr
+            inside = np.isfinite(uv).all(axis=1) & (uv[:, 0] >= 0) & (uv[:, 1] >= 0)
+            if intr is not None:
+                inside &= (uv[:, 0] <= intr.width - 1) & (uv[:, 1] <= intr.height - 1)
+            # the selected points that land in the current image, coloured by W (Fig. 15)
+            overlay = Overlay(points_uv=uv[inside].copy(), point_weights=r.weights[inside].copy())
+            extras.update(
+                rms_residual=r.rms, valid_fraction=r.valid_fraction, iterations=r.iterations,
+                n_points=int(r.weights.shape[0]),
+            )
+            if not att.good:
+                extras["lost_reason"] = att.why
+        return TrackResult(
+            state=state,
+            T_world_cam=None if T_world_cam is None else np.array(T_world_cam),
+            residual=residual,
+            inlier_fraction=inlier,
+            keyframe_id=kf_id,
+            timings_ms=timings,
+            overlay=overlay,
+            extras=extras,
+        )
+
+
+class DenseIncrementalTracker(_DenseBase):
+    """Algorithm 2: minimise against the reference, update the reference when signalled."""
+
+    name = "dense-incremental"
+
+    def reset(self) -> None:
+        super().reset()
+        self._ref: ph.Reference | None = None
+        self._ref_pre: ph.Preprocessed | None = None
+        self._T_world_ref: F64 = np.eye(4)
+        self._T_cur_ref: F64 = np.eye(4)
+        self._ref_id = -1
+
+
+    def track(self, frame: Frame) -> TrackResult:
+        t_start = time.perf_counter()
+        rebuild = self._apply_pending()
+        p = self._params
+        pre = self._prepare(frame)
+        timings = {"preprocess": (time.perf_counter() - t_start) * 1e3}
+        extras: dict[str, Any] = {}
+        if self._ref is None or self._ref_pre is None:
+            t = time.perf_counter()
+            self._T_world_ref = self._initial_pose(frame)
+            self._set_reference(pre, self._T_world_ref, frame)
+            timings["select"] = (time.perf_counter() - t) * 1e3
+            self._T_world_good = self._T_world_ref.copy()
+            self._note_good_pose(frame, self._T_world_good)
+            timings["total"] = (time.perf_counter() - t_start) * 1e3
+            return self._result(
+                TrackState.TRACKING, self._T_world_good, None, self._ref_id, timings, extras
+            )
+        if rebuild:
+            self._ref = self._build_reference(self._ref_pre)
+        t = time.perf_counter()
+        T0 = invert(self._predict()) @ self._T_world_ref
+        att = self._align(self._ref, pre, T0)
+        if not att.good and self._lost_frames > 0:
+            # relocalise: also try from the reference pose itself
+            alt = self._align(self._ref, pre, np.eye(4))
+            if alt.good or alt.res.median_abs_e < att.res.median_abs_e:
+                att = alt
+        timings["minimize"] = (time.perf_counter() - t) * 1e3
+        if att.good:
+            self._T_cur_ref = att.res.T_cur_ref
+            T_world_cam = ph.orthonormalize(self._T_world_ref @ invert(self._T_cur_ref))
+            self._note_good_pose(frame, T_world_cam, att.res)
+            self._T_world_good = T_world_cam
+            state = self._good_state(extras)
+            th = math.degrees(rotation_angle_rad(self._T_cur_ref[:3, :3]))
+            d = float(np.linalg.norm(self._T_cur_ref[:3, 3]))
+            if (
+                d > p.ref_update_dist_m
+                or th > p.ref_update_angle_deg
+                or att.res.inlier_fraction < p.ref_update_inlier_fraction
+            ):
+                t = time.perf_counter()
+                self._set_reference(pre, T_world_cam, frame)  # Algorithm 2 lines 4-7
+                timings["select"] = (time.perf_counter() - t) * 1e3
+        else:
+            self._lost_frames += 1
+            self._confirm_left = 0
+            state = TrackState.LOST
+            T_world_cam = self._T_world_good
+        timings["total"] = (time.perf_counter() - t_start) * 1e3
+        return self._result(state, T_world_cam, att, self._ref_id, timings, extras)
+
+    def _set_reference(self, pre: ph.Preprocessed, T_world_ref: F64, frame: Frame) -> None:
+        self._ref = self._build_reference(pre, frame)
+
+        self._ref_pre = pre
+        self._T_world_ref = np.array(T_world_ref)
+        self._T_cur_ref = np.eye(4)
+        self._ref_id += 1
+
+
+class DenseKeyframeTracker(_DenseBase):
+    """Algorithm 3: track against the nearest keyframe (eq. (19)-(21)) of a store."""
+
+    name = "dense"
+
+    def __init__(self, params: DenseParams, store: KeyframeStore | None = None) -> None:
+        self._given_store = store
+        super().__init__(params)
+
+    def reset(self) -> None:
+        super().reset()
+        self._store: KeyframeStore | None = self._given_store
+        self._store_dir = ""
+        self._online = self._given_store is None
+        self._refs: dict[int, ph.Reference] = {}
+        self._kf_id: int | None = None
+        self._started = False
+        self._have_good = False
+        if self._store is None and self._params.keyframes_dir:
+            self._load_store(self._params.keyframes_dir)
+
+    @property
+    def store(self) -> KeyframeStore | None:
+        return self._store
+
+    def _load_store(self, folder: str) -> None:
+        self._store = KeyframeStore.load(Path(folder))
+        self._store_dir = folder
+        self._online = False
+        self._refs = {}
+
+    def _reference(self, kf: Keyframe) -> ph.Reference:
+        ref = self._refs.get(kf.id)
+        if ref is None:
+            assert self._store is not None
+            pre = ph.preprocess(kf.gray.astype(np.float32), kf.depth_m, self._store.intrinsics)
+            ref = self._build_reference(pre)
+            self._refs[kf.id] = ref
+        return ref
+
+    def track(self, frame: Frame) -> TrackResult:
+        t_start = time.perf_counter()
+        if self._apply_pending():
+            self._refs = {}
+        p = self._params
+        if p.keyframes_dir and p.keyframes_dir != self._store_dir and self._given_store is None:
+            self._load_store(p.keyframes_dir)
+            self._started = False
+        pre = self._prepare(frame)
+        if self._store is not None and not same_camera(self._store.intrinsics, pre.intrinsics):
+            raise KeyframeStoreError(
+                f"{self._store_dir or 'keyframe store'}: built for a different camera "
+                f"({self._store.intrinsics.width}x{self._store.intrinsics.height} "
+                f"fx={self._store.intrinsics.fx}) than frame {frame.index}'s"
+            )
+        timings = {"preprocess": (time.perf_counter() - t_start) * 1e3}
+        extras: dict[str, Any] = {}
+        if self._store is None:
+            self._store = KeyframeStore(pre.intrinsics)
+            self._online = True
+        if not self._started:
+            return self._first_frame(frame, pre, timings, extras, t_start)
+        assert self._T_world_good is not None
+        if self._lost_frames > 0:
+            t = time.perf_counter()
+            att, kf = self._relocalize(pre, p.relocalize_candidates)
+            timings["minimize"] = (time.perf_counter() - t) * 1e3
+        else:
+            t = time.perf_counter()
+            kf, _ = self._store.nearest(
+                self._predict(), math.radians(p.theta_max_deg), p.d_max_m
+            )
+            assert kf is not None
+            ref = self._reference(kf)
+            timings["keyframe"] = (time.perf_counter() - t) * 1e3
+            t = time.perf_counter()
+            T0 = invert(self._predict()) @ kf.T_world_cam  # T^ = T_cur (T*)^-1, Alg. 3
+            att = self._align(ref, pre, T0)
+            timings["minimize"] = (time.perf_counter() - t) * 1e3
+        return self._finish(frame, pre, att, kf, timings, extras, t_start)
+
+    def _finish(
+        self,
+        frame: Frame,
+        pre: ph.Preprocessed,
+        att: _Attempt | None,
+        kf: Keyframe | None,
+        timings: dict[str, float],
+        extras: dict[str, Any],
+        t_start: float,
+    ) -> TrackResult:
+        p = self._params
+        assert self._store is not None
+        if att is not None and att.good and kf is not None:
+            # T_cur = T^ T*, Alg. 3 (in our T_world_cam convention)
+            T_world_cam = ph.orthonormalize(kf.T_world_cam @ invert(att.res.T_cur_ref))
+            self._note_good_pose(frame, T_world_cam, att.res)
+            self._T_world_good = T_world_cam
+            self._kf_id = kf.id
+            state = self._good_state(extras)
+            # the view has changed so much that the residual nears the loss threshold
+            # (an occluding presenter lowers the inlier fraction but hardly the median)
+            weak = att.res.median_abs_e > 0.5 * p.max_median_residual
+            if (
+                self._online
+                and state == TrackState.TRACKING
+                and (
+                    weak
+                    or self._store.far_from_all(
+                        T_world_cam, math.radians(p.kf_add_angle_deg), p.kf_add_dist_m
+                    )
+                )
+            ):
+                t = time.perf_counter()
+                self._add_keyframe(frame, pre, T_world_cam)
+                timings["select"] = (time.perf_counter() - t) * 1e3
+                extras["keyframe_added"] = True
+        else:
+            self._lost_frames += 1
+            self._confirm_left = 0
+            if self._have_good:
+                state = TrackState.LOST
+                T_world_cam = self._T_world_good
+            else:  # never located against the store yet: no pose to hold
+                state = TrackState.INITIALIZING
+                T_world_cam = None
+        if state.is_good or state == TrackState.RELOCALIZING:
+            self._have_good = True
+        extras["keyframes"] = len(self._store)
+        timings["total"] = (time.perf_counter() - t_start) * 1e3
+        return self._result(state, T_world_cam, att, self._kf_id, timings, extras)
+
+    def _add_keyframe(self, frame: Frame, pre: ph.Preprocessed, T_world_cam: F64) -> Keyframe:
+        assert self._store is not None
+        assert frame.color_bgr is not None
+        assert frame.depth_m is not None
+        gray = np.clip(gray_from_bgr(frame.color_bgr), 0, 255).round().astype(np.uint8)
+        kf = self._store.add(T_world_cam, gray, np.array(frame.depth_m, dtype=np.float32))
+        self._refs[kf.id] = self._build_reference(pre, frame)
+        self._kf_id = kf.id
+        return kf
+
+    def _first_frame(
+        self,
+        frame: Frame,
+        pre: ph.Preprocessed,
+        timings: dict[str, float],
+        extras: dict[str, Any],
+        t_start: float,
+    ) -> TrackResult:
+        assert self._store is not None
+        self._started = True
+        T_init = self._initial_pose(frame)
+        if len(self._store) == 0:
+            # online map: the first frame is the first keyframe
+            t = time.perf_counter()
+            self._add_keyframe(frame, pre, T_init)
+            timings["select"] = (time.perf_counter() - t) * 1e3
+            self._T_world_good = T_init
+            self._have_good = True
+            self._note_good_pose(frame, T_init)
+            extras["keyframes"] = 1
+            timings["total"] = (time.perf_counter() - t_start) * 1e3
+            return self._result(TrackState.TRACKING, T_init, None, self._kf_id, timings, extras)
+        # a store: start at the known pose or the first keyframe (Alg. 3, T^ = I) and
+        # relocalise over all keyframes nearest first
+        self._T_world_good = (
+            T_init
+            if self._params.anchor_to_ground_truth and frame.gt_T_world_cam is not None
+            else self._store.keyframes[0].T_world_cam.copy()
+        )
+        t = time.perf_counter()
+        att, kf = self._relocalize(pre, len(self._store))
+        timings["minimize"] = (time.perf_counter() - t) * 1e3
+        if att is None or not att.good:
+            self._lost_frames = 1
+            extras["keyframes"] = len(self._store)
+            timings["total"] = (time.perf_counter() - t_start) * 1e3
+            return self._result(TrackState.INITIALIZING, None, att, None, timings, extras)
+        self._lost_frames = 0
+        return self._finish(frame, pre, att, kf, timings, extras, t_start)
+
+    def _relocalize(
+        self, pre: ph.Preprocessed, n_candidates: int
+    ) -> tuple[_Attempt | None, Keyframe | None]:
+        """Try the keyframes nearest to the last good pose; best good attempt wins."""
+        assert self._store is not None
+        assert self._T_world_good is not None
+        best: tuple[_Attempt, Keyframe] | None = None
+        fallback: tuple[_Attempt, Keyframe] | None = None
+        for _, kf in self._store.ranked(self._T_world_good)[:n_candidates]:
+            ref = self._reference(kf)
+            for T0 in (invert(self._T_world_good) @ kf.T_world_cam, np.eye(4)):
+                att = self._align(ref, pre, T0)
+                if not att.res.ok:
+                    continue
+                if att.good:
+                    # the divergence test is relative to the guess; while relocalising,
+                    # keep it against the last good pose
+                    if best is None or att.res.median_abs_e < best[0].res.median_abs_e:
+                        best = (att, kf)
+                elif fallback is None or att.res.median_abs_e < fallback[0].res.median_abs_e:
+                    fallback = (att, kf)
+        if best is not None:
+            return best
+        if fallback is not None:
+            return fallback
+        return None, None

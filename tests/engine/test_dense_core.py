@@ -1,0 +1,195 @@
+"""Equation-level tests of the dense tracker (Tykkälä 2014 sec. 3-4)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from engine.camera import project
+from engine.dense import kernels, robust
+from engine.dense import photometric as ph
+from engine.dense.pyramid import build_pyramid, level_scales
+from engine.dense.selection import N_BINS, gradient_magnitude, select_points, threshold_bin
+from engine.dense.testscene import PlaneScene, small_intrinsics
+from engine.geometry import hat, invert, rotation_angle_rad, se3_exp
+
+
+def test_histogram_median_matches_direct_median() -> None:
+    rng = np.random.default_rng(1)
+    e = np.abs(rng.laplace(0.0, 3.0, 4001))
+    e[:40] = 250.0  # gross outliers stretch the histogram range
+    mask = np.ones(e.size, dtype=bool)
+    med_h = kernels.histogram_median(e, mask, 64)
+    med = float(np.median(e))
+    assert abs(med_h - med) < 250.0 / 4096 + 0.02 * med
+
+
+def test_tukey_weights_with_histogram_median_match_direct_median() -> None:
+    """Eq. (9)-(10) with the 64-bin histogram median vs NumPy's exact median."""
+    rng = np.random.default_rng(2)
+    e = rng.normal(0.0, 4.0, 8192)
+    e[::10] += rng.uniform(-120, 120, e[::10].size)  # 10 % outliers
+    mask = np.ones(e.size, dtype=bool)
+    w = np.zeros(e.size)
+    med_h = kernels.histogram_median(np.abs(e), mask, kernels.N_HIST_BINS)
+    kernels.tukey_weights(np.abs(e), mask, med_h, w)
+    w_ref = robust.tukey_weights(e)
+    assert np.max(np.abs(w - w_ref)) < 0.02
+    # the Tukey shape itself: weight 1 at zero, 0 beyond b * c * median
+    med = float(np.median(np.abs(e)))
+    w0 = robust.tukey_weights(np.array([0.0, 4.6851 * 1.4826 * med * 1.0001]), med)
+    np.testing.assert_allclose(w0, [1.0, 0.0])
+    # masked points get zero weight
+    mask[:5] = False
+    kernels.tukey_weights(np.abs(e), mask, med_h, w)
+    assert np.all(w[:5] == 0.0)
+    # the tracker's fused kernel (Tukey x depth weight, then eq. (13)) gives the same W
+    J = np.tile(np.eye(6)[0], (e.size, 1))
+    wz = np.full(e.size, 0.5)
+    wc = np.zeros(e.size)
+    H, g = np.zeros((6, 6)), np.zeros(6)
+    kernels._accumulate(J, e, np.abs(e), wz, mask, kernels.TUKEY_C * med_h, wc, H, g)
+    w_ref = 0.5 * robust.tukey_weights(e, med_h) * mask
+    np.testing.assert_allclose(wc, w_ref, atol=1e-9)
+    assert H[0, 0] == pytest.approx(w_ref.sum())
+    assert g[0] == pytest.approx(float(np.sum(w_ref * e)))
+
+
+def test_depth_weights_eq12() -> None:
+    w = robust.depth_weights(np.array([1.0, 1.02, 1.2]), np.array([1.0, 1.0, 1.0]), 0.05)
+    np.testing.assert_allclose(w, [1.0, (1 - 0.16) ** 2, 0.0])
+
+
+@pytest.mark.parametrize("n", [1, 100, 1000, 1024, 3000])
+def test_histogram_selection_returns_exactly_n(n: int) -> None:
+    rng = np.random.default_rng(n)
+    img = rng.uniform(0, 255, (60, 80)).astype(np.float32)
+    img = (img + np.roll(img, 1, 0) + np.roll(img, 1, 1)) / 3  # ties in many bins
+    g = gradient_magnitude(img)
+    cand = rng.uniform(size=g.shape) > 0.2
+    idx = select_points(g, cand, n)
+    assert idx.size == n
+    assert np.unique(idx).size == n
+    assert cand.ravel()[idx].all()
+    # eq. (15): every candidate in a bin above B_t is selected (P_good)
+    bins = np.clip((g.ravel() * 0.5).astype(int), 0, N_BINS - 1)
+    h = np.bincount(bins[cand.ravel()], minlength=N_BINS)
+    bt = threshold_bin(h, n)
+    good = np.flatnonzero(cand.ravel() & (bins > bt))
+    assert np.isin(good, idx).all()
+    assert h[bt + 1 :].sum() < n <= h[bt:].sum()
+
+
+def test_selection_with_fewer_candidates_returns_all() -> None:
+    g = np.ones((10, 10), np.float32)
+    cand = np.zeros((10, 10), bool)
+    cand[2, 3:7] = True
+    assert select_points(g, cand, 50).size == 4
+
+
+@pytest.mark.parametrize(
+    "xi",
+    [
+        [0.1, -0.2, 0.3, 1e-9, -2e-9, 1e-9],
+        [0.01, 0.02, -0.03, 1e-5, 3e-5, -2e-5],
+        [0.5, -0.1, 0.2, 0.3, -0.2, 0.1],
+        [1.0, 2.0, -1.0, 2.0, 1.0, -1.5],
+    ],
+)
+def test_se3_exp_matches_scipy_expm(xi: list[float]) -> None:
+    x = np.array(xi)
+    A = np.zeros((4, 4))
+    A[:3, :3] = hat(x[3:])
+    A[:3, 3] = x[:3]
+    ref = scipy.linalg.expm(A)
+    np.testing.assert_allclose(se3_exp(x), ref, atol=1e-12, rtol=1e-10)
+    np.testing.assert_allclose(kernels._se3_exp(x), ref, atol=1e-12, rtol=1e-10)
+
+
+def _bilinear_np(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    u, v = uv[:, 0], uv[:, 1]
+    x0, y0 = np.floor(u).astype(int), np.floor(v).astype(int)
+    ax, ay = u - x0, v - y0
+    return (1 - ay) * ((1 - ax) * img[y0, x0] + ax * img[y0, x0 + 1]) + ay * (
+        (1 - ax) * img[y0 + 1, x0] + ax * img[y0 + 1, x0 + 1]
+    )
+
+
+@pytest.mark.parametrize("texture", ["ramp", "sinusoid"])
+def test_jacobian_matches_finite_differences(texture: str) -> None:
+    """Eq. (6) with distortion in the warp vs central differences of c*(x) = I*(w(e^{-A(x)}P)).
+
+    On an intensity ramp, bilinear sampling and central differences are exact, so J must
+    match to numerical precision at every level; on a sinusoid the image-gradient
+    approximation adds a small error (checked at the finest level).
+    """
+    intr = small_intrinsics(distorted=True)
+    h, w = intr.height, intr.width
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    if texture == "ramp":
+        gray = (20 + 0.4 * u + 0.25 * v).astype(np.float32)
+        levels, tol = (0, 1, 2), 1e-4
+    else:
+        gray = (110 + 60 * np.sin(u / 9.0) * np.cos(v / 11.0)).astype(np.float32)
+        levels, tol = (0,), 0.03
+    depth = (1.2 + 0.3 * u / w).astype(np.float32)  # a slanted plane
+    pre = ph.Preprocessed(build_pyramid(gray), depth, intr)
+    ref = ph.build_reference(pre, 300)
+    scales = level_scales()
+    for lev in levels:
+        img = pre.levels[lev].astype(np.float64)
+        ok = np.abs(ref.J[lev]).sum(axis=1) > 0
+        assert ok.mean() > 0.9
+        eps = 1e-6
+        num = np.zeros((ref.n, 6))
+        for a in range(6):
+            dx = np.zeros(6)
+            dx[a] = eps
+            vals = []
+            for sgn in (1.0, -1.0):
+                T = se3_exp(-sgn * dx)  # e^{-A(x)}
+                q = ref.P @ T[:3, :3].T + T[:3, 3]
+                uv0 = project(intr, q)
+                vals.append(_bilinear_np(img, (uv0 + 0.5) * scales[lev] - 0.5))
+            num[:, a] = (vals[0] - vals[1]) / (2 * eps)
+        err = np.linalg.norm(ref.J[lev][ok] - num[ok], axis=1)
+        scale = np.linalg.norm(num[ok], axis=1)
+        assert np.median(err / scale) < tol, lev
+        # c*(0) is the bilinear sample at the projection
+        uv0 = project(intr, ref.P)
+        c0 = _bilinear_np(img, (uv0 + 0.5) * scales[lev] - 0.5)
+        np.testing.assert_allclose(ref.cstar[lev][ok], c0[ok], atol=1e-3)
+
+
+def test_pyramid_sizes_and_geometry_not_downsampled() -> None:
+    gray = np.random.default_rng(0).uniform(0, 255, (480, 640)).astype(np.float32)
+    levels = build_pyramid(gray)
+    assert [lv.shape for lv in levels] == [(240, 320), (120, 160), (60, 80)]
+    # 2x2 averaging between levels 0 -> 1 -> 2
+    np.testing.assert_allclose(levels[1][0, 0], levels[0][:2, :2].mean(), rtol=1e-6)
+    depth = np.ones((480, 640), np.float32)
+    intr = small_intrinsics().scaled(2.0)
+    pre = ph.preprocess(gray, depth, intr)
+    assert pre.depth_m.shape == (480, 640)
+
+
+def test_two_frame_alignment_recovers_known_motion() -> None:
+    """Algorithm 1 on two rendered frames: < 0.5 mm and < 0.05 deg."""
+    intr = small_intrinsics(distorted=True)
+    scene = PlaneScene(intr, room_scale=0.45)
+    T_world_ref = np.eye(4)
+    T_world_cur = se3_exp(np.array([0.012, -0.006, 0.01, 0.012, -0.01, 0.006]))
+    g0, d0 = scene.render(T_world_ref)
+    g1, d1 = scene.render(T_world_cur)
+    ref = ph.build_reference(ph.preprocess(g0.astype(np.float32), d0, intr), 4096)
+    assert ref.n == 4096
+    res = ph.align(ref, ph.preprocess(g1.astype(np.float32), d1, intr), np.eye(4), (10, 3, 2))
+    assert res.ok
+    T_true = invert(T_world_cur) @ T_world_ref  # T_cur_ref
+    D = invert(T_true) @ res.T_cur_ref
+    assert np.linalg.norm(D[:3, 3]) < 0.5e-3
+    assert np.degrees(rotation_angle_rad(D[:3, :3])) < 0.05
+    assert res.inlier_fraction > 0.8
+    assert res.weights.shape == (4096,)
+    assert res.uv_full.shape == (4096, 2)
