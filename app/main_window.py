@@ -12,11 +12,13 @@ import traceback
 from PySide6.QtCore import QByteArray, QSize, Qt, Slot
 from PySide6.QtGui import QAction, QCloseEvent, QIcon, QKeySequence
 from PySide6.QtWidgets import (
+    QFrame,
     QHBoxLayout,
     QLabel,
     QListWidget,
     QListWidgetItem,
     QMainWindow,
+    QScrollArea,
     QStackedWidget,
     QVBoxLayout,
     QWidget,
@@ -102,6 +104,9 @@ class MainWindow(QMainWindow):
         self.resizeDocks([self.log_dock], [120], Qt.Orientation.Vertical)
 
         self._make_actions()
+        from app.project_actions import install as install_project_actions
+
+        self.project_actions = install_project_actions(self)  # File > New/Open/Save (issue 4)
         ctx.bridge.started.connect(self._on_started)
         ctx.bridge.failed.connect(self._on_failed)
         ctx.bridge.finished.connect(self._on_finished)
@@ -125,7 +130,12 @@ class MainWindow(QMainWindow):
             item.setToolTip(spec.tooltip)
         item.setSizeHint(QSize(140, 34))
         self.nav.addItem(item)
-        self.stack.addWidget(widget)
+        # A page larger than the screen scrolls instead of forcing the window's minimum size.
+        scroll = QScrollArea()
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QFrame.Shape.NoFrame)
+        scroll.setWidget(widget)
+        self.stack.addWidget(scroll)
         self.pages[spec.title] = widget
 
     def page(self, title: str) -> QWidget:
@@ -190,6 +200,13 @@ class MainWindow(QMainWindow):
             self.resize(*DEFAULT_SIZE)
 
     def closeEvent(self, event: QCloseEvent) -> None:
+        if not self.project_actions.confirm_close():  # unsaved project: Save/Discard/Cancel
+            event.ignore()
+            return
+        for page in self.pages.values():  # pages with engine jobs or servers stop them
+            stop = getattr(page, "shutdown", None)
+            if callable(stop):
+                stop()
         self.ctx.settings.setValue("window/geometry", self.saveGeometry())
         self.ctx.settings.setValue("window/state", self.saveState())
         self.ctx.shutdown()

@@ -2,6 +2,8 @@
 
 Specs:
 - ``synthetic[:key=value,...]`` - the built-in virtual studio (see ``engine.studio``)
+- ``ptz-sim[:key=value,...]`` - ball on a circle seen by a stepping pan-tilt camera
+  (``engine.ptz.sim``; closes the pan/tilt loop with the ``ptz`` tracker)
 - ``camera:N`` - live webcam N through OpenCV
 - ``beacons[:...]``, ``beacons-csv:FILE[,...]``, ``beacons-udp:[...]`` - range beacons
   (see ``engine.sources.beacons``)
@@ -41,6 +43,10 @@ def open_source(spec: str) -> Source:
         from engine.sources.synthetic import SyntheticSource
 
         return SyntheticSource.from_options(parse_options(rest))
+    if kind == "ptz-sim":
+        from engine.ptz.sim import open_ptz_sim
+
+        return open_ptz_sim(parse_options(rest))
     if kind in ("beacons", "beacons-csv", "beacons-udp"):
         from engine.sources.beacons import open_beacon_source
 

@@ -1,0 +1,627 @@
+"""The PTZ page: pan-tilt camera target tracking (Gaspar 2009) and its calibration workflow.
+
+Tabs:
+- Calibration points (sec. 3.1): click an image point, type its world x, y, z in the table
+  (or import a CSV), Solve DLT; the residual of every point is shown and outliers are
+  highlighted in red; coplanar or too few points give a one-line message.
+- Lens lines (sec. 3.3): click points along world-straight lines (New line starts another)
+  or accept proposed lines (chessboard rows, LSD chains); Estimate fits the inverse radial
+  model; Preview shows the undistorted image with the corrected lines overlaid.
+- Live (sec. 4-6): ``ptz-sim`` through the ``ptz`` tracker on a private engine bridge;
+  video with the evolving snake (grey) and final contour (blue), measured centre and
+  predicted position; top view and height (estimate vs truth), model probabilities and
+  estimated omega over time (the paper's Fig. 6), position/velocity/acceleration with
+  2-sigma bands. Records are stored on arrival and a 30 Hz timer draws.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt, QTimer, Slot
+from PySide6.QtGui import QBrush, QColor
+from PySide6.QtWidgets import (
+    QApplication,
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.pages import PageSpec
+
+REDRAW_HZ = 30
+HISTORY = 3000
+MODEL_COLOURS = [(230, 230, 230), (255, 90, 90), (90, 200, 255), (255, 200, 60),
+                 (160, 255, 120), (220, 120, 255)]
+AXIS_COLOURS = [(255, 90, 90), (120, 230, 120), (90, 160, 255)]
+OUTLIER_BG = QColor(170, 40, 40)
+
+
+def _shared_data() -> Path:
+    return Path(__file__).resolve().parents[3] / "shared" / "data"
+
+
+class ClickImage(pg.PlotWidget):
+    """An image (row-major, y down) whose left clicks report image coordinates."""
+
+    def __init__(self, on_click: Any, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setAspectLocked(True)
+        self.invertY(True)
+        self.image_item = pg.ImageItem(axisOrder="row-major")
+        self.addItem(self.image_item)
+        self._on_click = on_click
+        self.scene().sigMouseClicked.connect(self._clicked)
+
+    def set_image_bgr(self, img: np.ndarray) -> None:
+        rgb = img[..., ::-1] if img.ndim == 3 else img
+        self.image_item.setImage(np.ascontiguousarray(rgb), autoLevels=False, levels=(0, 255))
+        self.autoRange()
+
+    def _clicked(self, ev: Any) -> None:
+        if ev.button() != Qt.MouseButton.LeftButton or self.image_item.image is None:
+            return
+        p = self.plotItem.vb.mapSceneToView(ev.scenePos())
+        self._on_click(float(p.x()), float(p.y()))
+
+
+class CalibPointsPanel(QWidget):
+    """DLT point entry: image clicks + typed world coordinates, residuals and outliers."""
+
+    COLS = ("u px", "v px", "x m", "y m", "z m", "residual px")
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.image: np.ndarray | None = None
+        self.result: Any = None
+        self.outliers = np.zeros(0, dtype=bool)
+        self.view = ClickImage(self.add_image_point)
+        self.scatter = pg.ScatterPlotItem(size=11, pen=pg.mkPen("k"),
+                                          brush=pg.mkBrush(80, 220, 80))
+        self.reproj = pg.ScatterPlotItem(size=9, symbol="x", pen=pg.mkPen(255, 220, 0, width=2))
+        self.view.addItem(self.scatter)
+        self.view.addItem(self.reproj)
+        self.table = QTableWidget(0, len(self.COLS))
+        self.table.setObjectName("ptz_points_table")
+        self.table.setHorizontalHeaderLabels(list(self.COLS))
+        self.table.itemChanged.connect(self._edited)
+        self.status = QLabel("Click image points, type their world x, y, z, then Solve DLT.")
+        self.status.setObjectName("ptz_dlt_status")
+        self.status.setWordWrap(True)
+        btns = QHBoxLayout()
+        self.solve_button = QPushButton("Solve DLT")
+        self.solve_button.setObjectName("ptz_solve_dlt")
+        for text, slot in (("Load image…", self._load_image), ("Import CSV…", self._import),
+                           ("Export CSV…", self._export), ("Remove selected", self._remove)):
+            b = QPushButton(text)
+            b.clicked.connect(slot)
+            btns.addWidget(b)
+        self.solve_button.clicked.connect(self.solve)
+        btns.addWidget(self.solve_button)
+        right = QWidget()
+        rl = QVBoxLayout(right)
+        rl.addWidget(self.table, 1)
+        rl.addLayout(btns)
+        rl.addWidget(self.status)
+        split = QSplitter()
+        split.addWidget(self.view)
+        split.addWidget(right)
+        split.setSizes([600, 500])
+        lay = QVBoxLayout(self)
+        lay.addWidget(split)
+
+    def set_image(self, img: np.ndarray) -> None:
+        self.image = img
+        self.view.set_image_bgr(img)
+
+    # -------------------------------------------------------------- point table
+    def add_image_point(self, u: float, v: float, xyz: tuple[float, float, float] | None = None
+                        ) -> int:
+        if self.image is not None:
+            h, w = self.image.shape[:2]
+            if not (0 <= u < w and 0 <= v < h):
+                return -1
+        r = self.table.rowCount()
+        self.table.blockSignals(True)
+        self.table.insertRow(r)
+        vals = [f"{u:.2f}", f"{v:.2f}"] + ([f"{c:g}" for c in xyz] if xyz else ["", "", ""])
+        for c, text in enumerate([*vals, ""]):
+            it = QTableWidgetItem(text)
+            if c == 5:
+                it.setFlags(it.flags() & ~Qt.ItemFlag.ItemIsEditable)
+            self.table.setItem(r, c, it)
+        self.table.blockSignals(False)
+        self._refresh_markers()
+        return r
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """Complete rows: world (N, 3), pixels (N, 2) and their table row indices."""
+        X, uv, idx = [], [], []
+        for r in range(self.table.rowCount()):
+            try:
+                vals = [float(self.table.item(r, c).text()) for c in range(5)]
+            except (AttributeError, ValueError):
+                continue
+            uv.append(vals[:2])
+            X.append(vals[2:5])
+            idx.append(r)
+        return np.asarray(X, float).reshape(-1, 3), np.asarray(uv, float).reshape(-1, 2), idx
+
+    def _edited(self, _item: QTableWidgetItem) -> None:
+        self._refresh_markers()
+
+    def _refresh_markers(self) -> None:
+        pts = []
+        for r in range(self.table.rowCount()):
+            try:
+                pts.append((float(self.table.item(r, 0).text()),
+                            float(self.table.item(r, 1).text())))
+            except (AttributeError, ValueError):
+                pts.append((np.nan, np.nan))
+        brushes = []
+        for r in range(len(pts)):
+            out = r < len(self.outliers) and self.outliers[r]
+            brushes.append(pg.mkBrush(230, 50, 50) if out else pg.mkBrush(80, 220, 80))
+        a = np.asarray(pts, float).reshape(-1, 2)
+        self.scatter.setData(x=a[:, 0], y=a[:, 1], brush=brushes)
+
+    def _remove(self) -> None:
+        for r in sorted({i.row() for i in self.table.selectedIndexes()}, reverse=True):
+            self.table.removeRow(r)
+        self.outliers = np.zeros(0, dtype=bool)
+        self._refresh_markers()
+
+    @Slot()
+    def solve(self) -> None:
+        from engine.errors import CalibrationError
+        from engine.ptz.dlt import calibrate_dlt, outlier_mask, project_P
+
+        X, uv, idx = self.rows()
+        self.outliers = np.zeros(self.table.rowCount(), dtype=bool)
+        self.table.blockSignals(True)
+        for r in range(self.table.rowCount()):
+            self.table.item(r, 5).setText("")
+            for c in range(6):
+                self.table.item(r, c).setBackground(QBrush())
+        self.table.blockSignals(False)
+        try:
+            res = calibrate_dlt(X, uv)
+        except CalibrationError as exc:
+            self.result = None
+            self.status.setText(f"⚠ {exc}")
+            self.reproj.setData(x=[], y=[])
+            self._refresh_markers()
+            return
+        self.result = res
+        out = outlier_mask(res.residuals_px)
+        self.table.blockSignals(True)
+        for k, r in enumerate(idx):
+            self.table.item(r, 5).setText(f"{res.residuals_px[k]:.2f}")
+            if out[k]:
+                self.outliers[r] = True
+                for c in range(6):
+                    self.table.item(r, c).setBackground(OUTLIER_BG)
+        self.table.blockSignals(False)
+        proj = project_P(res.P, X)
+        self.reproj.setData(x=proj[:, 0], y=proj[:, 1])
+        self._refresh_markers()
+        d = res.decomposition
+        c = d.camera_centre_world
+        self.status.setText(
+            f"{len(X)} points, RMSE {res.rmse_px:.2f} px, {int(out.sum())} outlier(s). "
+            f"αu {d.alpha_u:.1f}  αv {d.alpha_v:.1f}  u0 {d.u0:.1f}  v0 {d.v0:.1f}  "
+            f"centre ({c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}) m  skew {d.skew_deg:.2f}°"
+        )
+
+    def _load_image(self) -> None:
+        import cv2
+
+        path, _ = QFileDialog.getOpenFileName(self, "Calibration image", "",
+                                              "Images (*.png *.jpg *.bmp)")
+        if path:
+            img = cv2.imread(path)
+            if img is not None:
+                self.set_image(img)
+
+    def _import(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Points CSV (x,y,z,u,v)", "", "CSV (*.csv)")
+        if path:
+            self.import_csv(Path(path))
+
+    def import_csv(self, path: Path) -> None:
+        from engine.errors import CalibrationError
+        from engine.ptz.dlt import load_points_csv
+
+        try:
+            X, uv = load_points_csv(path)
+        except CalibrationError as exc:
+            self.status.setText(f"⚠ {exc}")
+            return
+        for x, m in zip(X, uv, strict=True):
+            self.add_image_point(float(m[0]), float(m[1]), (float(x[0]), float(x[1]),
+                                                            float(x[2])))
+        self.status.setText(f"imported {len(X)} point(s) from {path.name}")
+
+    def _export(self) -> None:
+        from engine.ptz.dlt import save_points_csv
+
+        path, _ = QFileDialog.getSaveFileName(self, "Points CSV", "points.csv", "CSV (*.csv)")
+        if path:
+            X, uv, _ = self.rows()
+            save_points_csv(path, X, uv)
+
+
+class LinesPanel(QWidget):
+    """Line-based distortion: click/propose lines, estimate, preview undistorted."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.image: np.ndarray | None = None
+        self.lines: list[list[tuple[float, float]]] = [[]]
+        self.fit: Any = None
+        self.preview = False
+        self.view = ClickImage(self.add_point)
+        self.curves: list[pg.PlotDataItem] = []
+        self.status = QLabel("Click points along lines straight in the world, or Propose.")
+        self.status.setObjectName("ptz_lines_status")
+        self.status.setWordWrap(True)
+        btns = QHBoxLayout()
+        for text, slot in (("New line", self.new_line), ("Propose (chessboard)",
+                                                         self.propose_chessboard),
+                           ("Propose (edges)", self.propose_edges), ("Clear", self.clear),
+                           ("Estimate", self.estimate), ("Preview undistorted",
+                                                         self.toggle_preview)):
+            b = QPushButton(text)
+            b.clicked.connect(slot)
+            btns.addWidget(b)
+        lay = QVBoxLayout(self)
+        lay.addWidget(self.view, 1)
+        lay.addLayout(btns)
+        lay.addWidget(self.status)
+
+    def set_image(self, img: np.ndarray) -> None:
+        self.image = img
+        self.fit = None
+        self.preview = False
+        self.view.set_image_bgr(img)
+        self._draw()
+
+    def add_point(self, u: float, v: float) -> None:
+        if self.preview:
+            return
+        self.lines[-1].append((u, v))
+        self._draw()
+
+    def new_line(self) -> None:
+        if self.lines[-1]:
+            self.lines.append([])
+
+    def clear(self) -> None:
+        self.lines = [[]]
+        self.fit = None
+        self._draw()
+
+    def _gray(self) -> np.ndarray | None:
+        import cv2
+
+        if self.image is None:
+            return None
+        return cv2.cvtColor(self.image, cv2.COLOR_BGR2GRAY) if self.image.ndim == 3 else self.image
+
+    def _accept(self, found: list[np.ndarray], what: str) -> None:
+        self.lines = [ln for ln in self.lines if ln] + [[tuple(p) for p in f] for f in found]
+        self.lines.append([])
+        self.status.setText(f"{len(found)} {what} line(s) proposed; Clear to discard")
+        self._draw()
+
+    def propose_chessboard(self) -> None:
+        from engine.ptz.distortion import propose_lines_chessboard
+
+        g = self._gray()
+        if g is not None:
+            self._accept(propose_lines_chessboard(g, (9, 6)), "chessboard")
+
+    def propose_edges(self) -> None:
+        from engine.ptz.distortion import propose_lines_edges
+
+        g = self._gray()
+        if g is not None:
+            self._accept(propose_lines_edges(g), "edge")
+
+    def estimate(self) -> None:
+        from engine.errors import CalibrationError
+        from engine.ptz.distortion import estimate_radial_from_lines
+
+        if self.image is None:
+            return
+        lines = [np.asarray(ln, float) for ln in self.lines if len(ln) >= 3]
+        try:
+            self.fit = estimate_radial_from_lines(
+                lines, (self.image.shape[1], self.image.shape[0]))
+        except CalibrationError as exc:
+            self.status.setText(f"⚠ {exc}")
+            return
+        m = self.fit.model
+        self.status.setText(
+            f"{len(lines)} lines: k3 {m.k[0]:+.4f}  k5 {m.k[1]:+.4f}  "
+            f"centre ({m.centre_px[0]:.1f}, {m.centre_px[1]:.1f}) px  "
+            f"straightness {self.fit.rms_before_px:.2f} → "
+            f"{self.fit.rms_after_px:.2f} px RMS"
+        )
+
+    def toggle_preview(self) -> None:
+        if self.fit is None or self.image is None:
+            self.status.setText("Estimate first")
+            return
+        self.preview = not self.preview
+        img = self.fit.model.undistort_image(self.image) if self.preview else self.image
+        self.view.set_image_bgr(img)
+        self._draw()
+
+    def _draw(self) -> None:
+        for c in self.curves:
+            self.view.removeItem(c)
+        self.curves = []
+        for i, ln in enumerate(self.lines):
+            if not ln:
+                continue
+            a = np.asarray(ln, float)
+            if self.preview and self.fit is not None:
+                a = self.fit.model.undistort_px(a)
+            col = MODEL_COLOURS[1 + i % (len(MODEL_COLOURS) - 1)]
+            c = pg.PlotDataItem(a[:, 0], a[:, 1], pen=pg.mkPen(col, width=2), symbol="o",
+                                symbolSize=5, symbolBrush=col)
+            self.view.addItem(c)
+            self.curves.append(c)
+
+
+class LivePanel(QWidget):
+    """Runs ptz-sim through the ptz tracker; video, trajectories, Fig. 6 and error bands."""
+
+    def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        from app.engine_bridge import EngineBridge
+        from engine.trackers.ptz import PtzParams
+        from widgets.param_form import ParamForm
+
+        self.ctx = ctx
+        self.bridge = EngineBridge(self)
+        self.bridge.result_ready.connect(self._on_record)
+        self.bridge.failed.connect(self._on_failed)
+        self._latest: Any = None
+        self._dirty = False
+        self.t: list[float] = []
+        self.est: list[np.ndarray] = []
+        self.sig: list[np.ndarray] = []
+        self.truth: list[np.ndarray] = []
+        self.probs: list[np.ndarray] = []
+        self.omega: list[float] = []
+        self.omega_true: list[float] = []
+        self.form = ParamForm(PtzParams(target_b=40, target_g=40, target_r=210))
+        self.form.params_changed.connect(self.bridge.set_params)
+        self.start_button = QPushButton("Start (ptz-sim)")
+        self.start_button.setObjectName("ptz_start")
+        self.stop_button = QPushButton("Stop")
+        self.start_button.clicked.connect(self.start)
+        self.stop_button.clicked.connect(self.stop)
+        self.readout = QLabel("")
+        self.readout.setObjectName("ptz_readout")
+        self.readout.setWordWrap(True)
+
+        self.video = ClickImage(lambda u, v: None)
+        self.snake_items = [pg.PlotDataItem(pen=pg.mkPen(200, 200, 200, 120)) for _ in range(5)]
+        self.final_contour = pg.PlotDataItem(pen=pg.mkPen(60, 140, 255, width=2))
+        self.centre = pg.ScatterPlotItem(size=12, symbol="+", pen=pg.mkPen(0, 255, 0, width=2))
+        self.pred = pg.ScatterPlotItem(size=12, symbol="o", pen=pg.mkPen(255, 220, 0, width=2),
+                                       brush=None)
+        for it in (*self.snake_items, self.final_contour, self.centre, self.pred):
+            self.video.addItem(it)
+
+        self.plots = pg.GraphicsLayoutWidget()
+        self.top = self.plots.addPlot(0, 0, title="top view x–y (m)")
+        self.top.setAspectLocked(True)
+        self.top_truth = self.top.plot(pen=pg.mkPen(230, 230, 230, width=5))
+        self.top_est = self.top.plot(pen=pg.mkPen(255, 90, 90, width=1.5))
+        self.zplot = self.plots.addPlot(0, 1, title="height z (m): est vs truth")
+        self.z_truth = self.zplot.plot(pen=pg.mkPen(230, 230, 230))
+        self.z_est = self.zplot.plot(pen=pg.mkPen(255, 90, 90, width=2))
+        self.pplot = self.plots.addPlot(1, 0, title="model probabilities (Fig. 6 left)")
+        self.pplot.setYRange(0, 1.02)
+        self.pplot.addLegend(offset=(5, 5))
+        self.p_curves: list[Any] = []
+        self.wplot = self.plots.addPlot(1, 1, title="ω (rad/s): estimated vs real (Fig. 6 right)")
+        self.w_est = self.wplot.plot(pen=pg.mkPen(90, 160, 255, width=2))
+        self.w_true = self.wplot.plot(pen=pg.mkPen(255, 90, 90))
+        self.kin_plots = []
+        self.kin_items: list[list[tuple[Any, Any, Any, Any]]] = []
+        for k, title in enumerate(("position (m) ±2σ", "velocity (m/s) ±2σ",
+                                   "acceleration (m/s²) ±2σ")):
+            pl = self.plots.addPlot(2 + k // 2, k % 2, title=title)
+            items = []
+            for a in range(3):
+                col = AXIS_COLOURS[a]
+                lo = pl.plot(pen=pg.mkPen(*col, 0))
+                hi = pl.plot(pen=pg.mkPen(*col, 0))
+                fill = pg.FillBetweenItem(lo, hi, brush=pg.mkBrush(*col, 50))
+                pl.addItem(fill)
+                est = pl.plot(pen=pg.mkPen(col, width=2))
+                tru = pl.plot(pen=pg.mkPen(col, width=1, style=Qt.PenStyle.DashLine))
+                items.append((lo, hi, est, tru))
+            self.kin_plots.append(pl)
+            self.kin_items.append(items)
+
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        row = QHBoxLayout()
+        row.addWidget(self.start_button)
+        row.addWidget(self.stop_button)
+        ll.addLayout(row)
+        ll.addWidget(self.readout)
+        ll.addWidget(self.form, 1)
+        split = QSplitter()
+        split.addWidget(left)
+        split.addWidget(self.video)
+        split.addWidget(self.plots)
+        split.setSizes([260, 480, 620])
+        lay = QVBoxLayout(self)
+        lay.addWidget(split)
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self.redraw)
+        self.timer.start(int(1000 / REDRAW_HZ))
+        app = QApplication.instance()
+        if app is not None:  # the main window's close only stops the shared bridge
+            app.aboutToQuit.connect(self.bridge.stop)
+
+    def start(self, spec: str = "ptz-sim:duration=60,period=50", realtime: bool = True) -> None:
+        for lst in (self.t, self.est, self.sig, self.truth, self.probs, self.omega,
+                    self.omega_true):
+            lst.clear()
+        self.bridge.start(spec if isinstance(spec, str) else "ptz-sim:duration=60,period=50",
+                          "ptz", self.form.params, realtime=realtime)
+
+    def stop(self) -> None:
+        self.bridge.stop()
+
+    @Slot(object)
+    def _on_record(self, rec: Any) -> None:
+        self._latest = rec
+        self._dirty = True
+        ex = rec.result.extras
+        if "target_xyz" not in ex:
+            return
+        x = np.concatenate([ex["target_xyz"], ex["target_vel"], ex["target_acc"]])
+        order = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
+        sig = np.sqrt(np.clip(np.diag(ex["target_cov"])[order], 0, None))
+        fe = rec.frame.extras
+        tru = np.concatenate([fe.get("target_xyz_world", np.full(3, np.nan)),
+                              fe.get("target_vel_world", np.full(3, np.nan)),
+                              fe.get("target_acc_world", np.full(3, np.nan))])
+        self.t.append(rec.frame.timestamp_s)
+        self.est.append(x)
+        self.sig.append(sig)
+        self.truth.append(tru)
+        self.probs.append(np.asarray(ex["model_probs"]))
+        self.omega.append(float(ex["omega_rad_s"]))
+        self.omega_true.append(float(fe.get("target_omega_rad_s", np.nan)))
+        if len(self.t) > HISTORY:
+            for lst in (self.t, self.est, self.sig, self.truth, self.probs, self.omega,
+                        self.omega_true):
+                del lst[0]
+        if not self.p_curves and "omegas" in ex:
+            for j, w in enumerate(ex["omegas"]):
+                self.p_curves.append(self.pplot.plot(
+                    pen=pg.mkPen(MODEL_COLOURS[j % len(MODEL_COLOURS)], width=2),
+                    name=f"p{j + 1} ω={w:.3f}"))
+
+    @Slot(str)
+    def _on_failed(self, msg: str) -> None:
+        self.readout.setText(f"⚠ {msg}")
+
+    def redraw(self) -> None:
+        if not self._dirty or self._latest is None:
+            return
+        self._dirty = False
+        rec = self._latest
+        if rec.frame.color_bgr is not None:
+            self.video.image_item.setImage(np.ascontiguousarray(rec.frame.color_bgr[..., ::-1]),
+                                           autoLevels=False, levels=(0, 255))
+        ov = rec.result.overlay
+        polys = list(ov.polylines_uv) if ov is not None else []
+        for i, it in enumerate(self.snake_items):
+            if i < len(polys) - 1:
+                it.setData(polys[i][:, 0], polys[i][:, 1])
+            else:
+                it.setData([], [])
+        if polys:
+            self.final_contour.setData(polys[-1][:, 0], polys[-1][:, 1])
+        if ov is not None and ov.crosshair_uv is not None:
+            self.centre.setData([ov.crosshair_uv[0]], [ov.crosshair_uv[1]])
+        pu = rec.result.extras.get("predicted_uv")
+        self.pred.setData(*(([pu[0]], [pu[1]]) if pu else ([], [])))
+        if not self.t:
+            return
+        t = np.asarray(self.t)
+        E = np.asarray(self.est)
+        S = np.asarray(self.sig)
+        T = np.asarray(self.truth)
+        self.top_truth.setData(T[:, 0], T[:, 1])
+        self.top_est.setData(E[:, 0], E[:, 1])
+        self.z_truth.setData(t, T[:, 2])
+        self.z_est.setData(t, E[:, 2])
+        Pm = np.asarray(self.probs)
+        for j, c in enumerate(self.p_curves):
+            c.setData(t, Pm[:, j])
+        self.w_est.setData(t, np.asarray(self.omega))
+        self.w_true.setData(t, np.asarray(self.omega_true))
+        for k, items in enumerate(self.kin_items):
+            for a, (lo, hi, est, tru) in enumerate(items):
+                i = 3 * k + a
+                lo.setData(t, E[:, i] - 2 * S[:, i])
+                hi.setData(t, E[:, i] + 2 * S[:, i])
+                est.setData(t, E[:, i])
+                tru.setData(t, T[:, i])
+        ex = rec.result.extras
+        err = float(np.linalg.norm(E[-1, :3] - T[-1, :3]))
+        meas = ex.get("measurement")
+        self.readout.setText(
+            f"{rec.result.state.value}  t={t[-1]:.1f} s  d={meas[2]:.2f} m  " if meas else
+            f"{rec.result.state.value}  t={t[-1]:.1f} s  "
+        )
+        self.readout.setText(
+            self.readout.text() + f"pos err {err * 100:.1f} cm  ω̂={self.omega[-1]:.3f} rad/s  "
+            f"pan/tilt {ex.get('ptz_pan_tilt_deg')}  resets {ex.get('resets')}  "
+            f"{1000.0 / max(rec.process_ms, 1e-3):.0f} updates/s"
+        )
+
+
+class PtzPage(QWidget):
+    def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setObjectName("page_ptz")
+        self.ctx = ctx
+        self.tabs = QTabWidget()
+        self.points = CalibPointsPanel()
+        self.lines = LinesPanel()
+        self.live = LivePanel(ctx)
+        self.tabs.addTab(self.live, "Live")
+        self.tabs.addTab(self.points, "Calibration points (DLT)")
+        self.tabs.addTab(self.lines, "Lens lines")
+        lay = QGridLayout(self)
+        lay.setContentsMargins(4, 4, 4, 4)
+        lay.addWidget(self.tabs, 0, 0)
+        self._load_defaults()
+
+    def _load_defaults(self) -> None:
+        import cv2
+
+        from engine.ptz.sim import CircleScenario, PtzSimSource
+
+        frame = next(iter(PtzSimSource(CircleScenario(duration_s=0.1)).frames()))
+        self.points.set_image(np.ascontiguousarray(frame.color_bgr))
+        self.live.video.set_image_bgr(np.ascontiguousarray(frame.color_bgr))
+        radial = _shared_data() / "opencv_samples" / "lines_distortion" / "calib_radial.jpg"
+        img = cv2.imread(str(radial)) if radial.exists() else None
+        self.lines.set_image(img if img is not None else np.ascontiguousarray(frame.color_bgr))
+
+    def shutdown(self) -> None:
+        self.live.timer.stop()
+        self.live.bridge.stop()
+
+
+def _factory(ctx: Any) -> QWidget:
+    return PtzPage(ctx)
+
+
+PAGE = PageSpec(title="PTZ", order=60, factory=_factory,
+                tooltip="pan-tilt camera target tracking (Gaspar 2009): calibration + live")

@@ -1,0 +1,276 @@
+"""``ptz``: pan-tilt camera target tracker (Gaspar & Oliveira 2009).
+
+Per frame: colour segmentation + snake -> (u, v, d) (sec. 4), MMAE over constant-turn EKFs
+(sec. 5) -> target position, velocity, acceleration, covariance, model probabilities and
+turn rate; then the pan/tilt decision (sec. 6.1) sent to ``frame.extras["ptz_port"]`` when
+the source offers one. The head geometry comes from ``frame.extras["ptz_head"]`` (a
+:class:`engine.ptz.kinematics.PtzHead`) or, without one, a fixed camera at the world origin
+with ``frame.intrinsics``; the motor angles from ``frame.extras["ptz_pan_tilt_deg"]``
+(encoder) or the last command.
+
+The result's ``T_world_cam`` is the camera pose (from the head kinematics), ``box_xywh`` the
+target's box; ``extras`` hold the estimate (``target_xyz``, ``target_vel``, ``target_acc``,
+``target_cov``, ``model_probs``, ``omega_rad_s``, ``predicted_uv``, ``measurement``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from engine.errors import ParamsError
+from engine.frames import Frame
+from engine.trackers.base import Overlay, TrackerSpec, TrackResult, TrackState
+
+PAPER_OMEGAS = tuple(2.0 * math.pi / 50.0 * j for j in range(4))
+
+
+@dataclass(frozen=True, slots=True)
+class PtzParams:
+    """Target colour and size, snake (eq. (2)), MMAE bank, noise (Q, R) and pan/tilt control."""
+
+    target_b: int = field(default=0, metadata={"help": "target colour blue", "min": 0, "max": 255})
+    target_g: int = field(default=0, metadata={"help": "target colour green", "min": 0,
+                                               "max": 255})
+    target_r: int = field(default=255, metadata={"help": "target colour red", "min": 0,
+                                                 "max": 255})
+    target_radius_m: float = field(default=0.1, metadata={
+        "help": "known target radius (m): gives the distance d (sec. 4.2)", "min": 0.005,
+        "max": 2.0, "step": 0.005})
+    snake_alpha: float = field(default=0.5, metadata={"help": "snake tension alpha, eq. (2)",
+                                                      "min": 0.0, "max": 10.0, "step": 0.05})
+    snake_beta: float = field(default=0.05, metadata={"help": "snake rigidity beta, eq. (2)",
+                                                      "min": 0.0, "max": 10.0, "step": 0.01})
+    external_force: str = field(default="gradient", metadata={
+        "help": "snake external force: gradient or gvf", "choices": ("gradient", "gvf")})
+    centre_method: str = field(default="moments", metadata={
+        "help": "contour (paper: mean of contour points) or moments (colour mass in snake)",
+        "choices": ("contour", "moments")})
+    omega_max_rad_s: float = field(default=2.0 * math.pi / 50.0 * 3, metadata={
+        "help": "largest model turn rate; models at 0..max evenly (paper: 2pi/50*[0..3])",
+        "min": 0.0, "max": 10.0, "step": 0.01})
+    n_models: int = field(default=4, metadata={"help": "number of MMAE models", "min": 1,
+                                               "max": 16})
+    q_jerk_psd: float = field(default=1e-4, metadata={
+        "help": "process noise: white-jerk PSD per axis (m^2/s^5)", "min": 1e-10, "max": 100.0,
+        "step": 1e-5})
+    sigma_uv_px: float = field(default=0.3, metadata={
+        "help": "measurement noise of u, v (px)", "min": 0.01, "max": 50.0, "step": 0.05})
+    sigma_d_rel: float = field(default=0.01, metadata={
+        "help": "measurement noise of d relative to d", "min": 1e-4, "max": 1.0, "step": 0.001})
+    min_model_prob: float = field(default=0.0, metadata={
+        "help": "floor of model probabilities (0 = paper's MMAE)", "min": 0.0, "max": 0.2,
+        "step": 1e-4})
+    nis_reset: float = field(default=25.0, metadata={
+        "help": "re-initialise when the mean NIS over 15 updates exceeds this", "min": 3.0,
+        "max": 1e6})
+    control: bool = field(default=True, metadata={"help": "send pan/tilt commands"})
+    deadband_px: float = field(default=40.0, metadata={
+        "help": "re-centre when the target is this far from the image centre (px)", "min": 0.0,
+        "max": 1000.0})
+
+    def __post_init__(self) -> None:
+        if self.external_force not in ("gradient", "gvf"):
+            raise ParamsError(f"external_force {self.external_force!r}: gradient or gvf")
+        if self.centre_method not in ("contour", "moments"):
+            raise ParamsError(f"centre_method {self.centre_method!r}: contour or moments")
+        if self.target_radius_m <= 0:
+            raise ParamsError(f"target_radius_m must be positive, got {self.target_radius_m}")
+        if self.n_models < 1:
+            raise ParamsError(f"n_models must be >= 1, got {self.n_models}")
+        for name in ("q_jerk_psd", "sigma_uv_px", "sigma_d_rel"):
+            if not getattr(self, name) > 0:
+                raise ParamsError(f"{name} must be positive, got {getattr(self, name)}")
+        b, g, r = self.target_bgr
+        if max(b, g, r) - min(b, g, r) < 30:
+            raise ParamsError(f"target colour {self.target_bgr} is too grey to segment")
+
+    @property
+    def target_bgr(self) -> tuple[int, int, int]:
+        return (self.target_b, self.target_g, self.target_r)
+
+    @property
+    def omegas(self) -> tuple[float, ...]:
+        if self.n_models == 1:
+            return (self.omega_max_rad_s,)
+        return tuple(float(w) for w in np.linspace(0.0, self.omega_max_rad_s, self.n_models))
+
+
+class PtzTracker:
+    name = "ptz"
+
+    def __init__(self, params: PtzParams) -> None:
+        self._params = params
+        self._pending: PtzParams | None = None
+        self.reset()
+
+    @property
+    def params(self) -> PtzParams:
+        return self._params
+
+    def set_params(self, params: PtzParams) -> None:
+        self._pending = params
+
+    def reset(self) -> None:
+        self.mmae: Any = None
+        self.last_t: float | None = None
+        self.last_cmd: tuple[float, float] | None = None
+        self.resets = 0
+        self.misses = 0
+
+    def _build(self) -> None:
+        from engine.ptz.mmae import Mmae
+
+        p = self._params
+        self.mmae = Mmae(p.omegas, q_psd=p.q_jerk_psd, min_prob=p.min_model_prob,
+                         nis_reset=p.nis_reset)
+
+    def _head(self, frame: Frame) -> Any:
+        from engine.ptz.kinematics import PtzHead
+
+        head = frame.extras.get("ptz_head")
+        if head is not None:
+            return head
+        cam = frame.intrinsics
+        K = cam.K if cam is not None else np.array([[525.0, 0, 319.5], [0, 525.0, 239.5],
+                                                    [0, 0, 1.0]])
+        return PtzHead(K=K)
+
+    def track(self, frame: Frame) -> TrackResult:
+        from engine.ptz.control import StepLimits, decide
+        from engine.ptz.snake import measure_target
+
+        if self._pending is not None:
+            old, self._params, self._pending = self._params, self._pending, None
+            if (old.omegas, old.q_jerk_psd, old.min_model_prob, old.nis_reset) != (
+                self._params.omegas, self._params.q_jerk_psd, self._params.min_model_prob,
+                self._params.nis_reset,
+            ):
+                self.mmae = None
+        p = self._params
+        if frame.color_bgr is None:
+            return TrackResult(state=TrackState.LOST)
+        t0 = time.perf_counter()
+        head = self._head(frame)
+        pan, tilt = frame.extras.get("ptz_pan_tilt_deg", self.last_cmd or (0.0, 0.0))
+        P_cam = head.P(pan, tilt)
+        T_wc = head.T_world_cam(pan, tilt)
+        c_world = T_wc[:3, 3]
+        if self.mmae is None:
+            self._build()
+        mm = self.mmae
+        dt = 1.0 / 30.0 if self.last_t is None else max(1e-3, frame.timestamp_s - self.last_t)
+        self.last_t = frame.timestamp_s
+        if mm.initialised:
+            mm.predict(dt)
+        pred_uv = None
+        if mm.initialised:
+            xp = mm.estimate().x
+            from engine.ptz.ekf import h_measure
+
+            zp = h_measure(xp, P_cam, c_world)
+            pred_uv = (float(zp[0]), float(zp[1]))
+        t1 = time.perf_counter()
+        focal = float(np.sqrt(head.K[0, 0] * head.K[1, 1]))
+        meas = measure_target(
+            np.asarray(frame.color_bgr), p.target_bgr, p.target_radius_m, focal,
+            alpha=p.snake_alpha, beta=p.snake_beta, external=p.external_force,
+            near_uv=pred_uv, centre_method=p.centre_method,
+        )
+        t2 = time.perf_counter()
+        state = TrackState.TRACKING
+        reinit = False
+        if meas is None:
+            self.misses += 1
+            state = TrackState.DEGRADED if mm.initialised and self.misses < 30 else TrackState.LOST
+        else:
+            self.misses = 0
+            z = np.array([meas.u, meas.v, meas.d_m])
+            if frame.intrinsics is not None and frame.intrinsics.has_distortion:
+                from engine.camera import pixels_to_normalized
+
+                cam = frame.intrinsics
+                xy = pixels_to_normalized(cam, z[None, :2])[0]
+                z[:2] = (cam.fx * xy[0] + cam.cx, cam.fy * xy[1] + cam.cy)
+            R = np.diag([p.sigma_uv_px**2, p.sigma_uv_px**2, (p.sigma_d_rel * z[2]) ** 2])
+            if not mm.initialised:
+                self._init_filter(z, P_cam, T_wc)
+                state = TrackState.INITIALIZING
+            elif not mm.update(z, R, P_cam, c_world):
+                self.resets += 1
+                reinit = True
+                self._init_filter(z, P_cam, T_wc)
+                state = TrackState.RELOCALIZING
+        t3 = time.perf_counter()
+        extras: dict[str, Any] = {"ptz_pan_tilt_deg": (pan, tilt), "resets": self.resets,
+                                  "reinitialised": reinit, "predicted_uv": pred_uv}
+        polylines: list[np.ndarray] = []
+        if meas is not None:
+            extras["measurement"] = (meas.u, meas.v, meas.d_m)
+            extras["snake_iterations"] = meas.snake_iterations
+            extras["radius_px"] = meas.radius_px
+            polylines = [np.vstack([c, c[:1]]).astype(np.float32) for c in
+                         (*meas.history[:-1], meas.contour_xy)]
+        if mm.initialised:
+            est = mm.estimate()
+            extras.update(
+                target_xyz=est.x[[0, 3, 6]].copy(), target_vel=est.x[[1, 4, 7]].copy(),
+                target_acc=est.x[[2, 5, 8]].copy(), target_cov=est.P.copy(),
+                model_probs=est.probs.copy(), omegas=mm.omegas.copy(),
+                omega_rad_s=est.omega_rad_s, mean_nis=est.mean_nis,
+            )
+            if p.control:
+                cmd = decide(head, pan, tilt, est.x[[0, 3, 6]] + est.x[[1, 4, 7]] * dt,
+                             (int(2 * head.K[0, 2] + 1), int(2 * head.K[1, 2] + 1)),
+                             p.deadband_px, StepLimits())
+                extras["ptz_command_deg"] = cmd
+                port = frame.extras.get("ptz_port")
+                if cmd != (pan, tilt):
+                    self.last_cmd = cmd
+                    if port is not None:
+                        port.command(*cmd)
+        overlay = Overlay(
+            polylines_uv=tuple(polylines),
+            crosshair_uv=(meas.u, meas.v) if meas is not None else None,
+            points_uv=np.array([pred_uv], np.float32) if pred_uv is not None else None,
+        )
+        return TrackResult(
+            state=state,
+            T_world_cam=T_wc,
+            box_xywh=meas.box_xywh if meas is not None else None,
+            residual=extras.get("mean_nis"),
+            timings_ms={"predict": (t1 - t0) * 1e3, "snake": (t2 - t1) * 1e3,
+                        "mmae": (t3 - t2) * 1e3},
+            overlay=overlay,
+            extras=extras,
+        )
+
+    def _init_filter(self, z: np.ndarray, P_cam: np.ndarray, T_wc: np.ndarray) -> None:
+        """Position from the back-projected (u, v) at distance d; zero velocity/acceleration."""
+        Minv = np.linalg.inv(P_cam[:, :3])
+        ray = Minv @ np.array([z[0], z[1], 1.0])
+        ray /= np.linalg.norm(ray)
+        if ray @ T_wc[:3, 2] < 0:
+            ray = -ray
+        pos = T_wc[:3, 3] + z[2] * ray
+        x0 = np.zeros(9)
+        x0[[0, 3, 6]] = pos
+        sig_p = max(0.05, 0.05 * z[2])
+        P0 = np.diag(np.tile([sig_p**2, 1.0**2, 0.5**2], 3))
+        self.mmae.init(x0, P0)
+
+
+TRACKERS = (
+    TrackerSpec(
+        name="ptz",
+        description="pan-tilt camera target tracker: colour snake + constant-turn MMAE "
+        "(Gaspar 2009)",
+        params_cls=PtzParams,
+        factory=PtzTracker,
+        output="box",
+    ),
+)
