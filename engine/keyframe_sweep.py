@@ -1,0 +1,271 @@
+"""Recording a keyframe sweep for the operator workflow (Tykkälä 2014 sec. 6.1).
+
+Like :func:`engine.dense.sweep.sweep` (incremental dense tracking, a keyframe added when the
+camera is farther than the thresholds from every existing one), plus what the Keyframes page
+needs: a per-frame progress record (state, new keyframe thumbnail), appending to an existing
+store (a second sweep), and the non-keyframe frames with their tracked poses kept for the
+depth fusion of Fig. 10. While the track is lost, no keyframe is added (the dense tracker
+adds keyframes only in the TRACKING state) and the record says so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.errors import ParamsError, TrackerError
+from engine.frames import readonly
+from engine.fusion import PosedFrame
+
+F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class SweepParams:
+    """Keyframe selection and frame keeping while recording (units in the names)."""
+
+    kf_add_dist_m: float = field(
+        default=0.15,
+        metadata={
+            "help": "add a keyframe when this far from all others (m)",
+            "min": 0.01,
+            "max": 5.0,
+            "step": 0.01,
+        },
+    )
+    kf_add_angle_deg: float = field(
+        default=10.0,
+        metadata={
+            "help": "...or turned this much from all others (deg)",
+            "min": 0.5,
+            "max": 90.0,
+            "step": 0.5,
+        },
+    )
+    keep_every: int = field(
+        default=2,
+        metadata={"help": "keep every n-th tracked frame for depth fusion", "min": 1, "max": 30},
+    )
+    max_kept_frames: int = field(
+        default=400,
+        metadata={
+            "help": "at most this many frames kept for fusion (memory)",
+            "min": 0,
+            "max": 5000,
+        },
+    )
+    max_frames: int = field(
+        default=0, metadata={"help": "stop after this many frames (0: all)", "min": 0}
+    )
+
+    def __post_init__(self) -> None:
+        if self.kf_add_dist_m <= 0 or self.kf_add_angle_deg <= 0:
+            raise ParamsError("keyframe thresholds must be positive")
+        if self.keep_every < 1 or self.max_kept_frames < 0 or self.max_frames < 0:
+            raise ParamsError("keep_every must be >= 1, max_kept_frames and max_frames >= 0")
+
+
+@dataclass(frozen=True, slots=True)
+class NewKeyframe:
+    id: int
+    T_world_cam: F64
+    thumbnail: NDArray[np.uint8]  # grey, about 96 px wide
+    valid_depth_fraction: float
+
+
+@dataclass(frozen=True, slots=True)
+class SweepProgress:
+    """One processed frame of a recording (crosses threads: frozen, read-only arrays)."""
+
+    frame_index: int
+    frames: int
+    keyframes: int
+    lost_frames: int
+    state: str  # TrackState name
+    adding_paused: bool  # lost track: keyframe adding is paused
+    T_world_cam: F64 | None
+    new_keyframe: NewKeyframe | None
+    source_len: int
+
+
+@dataclass(frozen=True)
+class SweepRecording:
+    store: Any  # KeyframeStore
+    frames: tuple[PosedFrame, ...]  # non-keyframe frames with tracked poses (for fusion)
+    trajectory: dict[int, F64]  # frame index -> tracked T_world_cam (good frames)
+    frames_processed: int
+    lost_frames: int
+    seconds: float
+    stopped: bool
+
+
+def thumbnail(gray: NDArray[np.uint8], width: int = 96) -> NDArray[np.uint8]:
+    import cv2
+
+    h, w = gray.shape[:2]
+    out = cv2.resize(gray, (width, max(1, round(h * width / w))), interpolation=cv2.INTER_AREA)
+    return readonly(out)  # type: ignore[return-value]
+
+
+def record_sweep(
+    source: Any,
+    params: SweepParams | None = None,
+    *,
+    store: Any | None = None,
+    dense_params: Any | None = None,
+    on_progress: Callable[[SweepProgress], None] | None = None,
+    should_stop: Callable[[], bool] = lambda: False,
+) -> SweepRecording:
+    """Track ``source`` incrementally and add keyframes (appending to ``store`` if given)."""
+    import cv2
+
+    from engine.dense.keyframes import Keyframe, KeyframeStore
+    from engine.dense.tracking import DenseKeyframeTracker
+    from engine.trackers.dense import DenseParams
+
+    p = params or SweepParams()
+    dp = dataclasses.replace(
+        dense_params or DenseParams(),
+        keyframes_dir="",
+        kf_add_dist_m=p.kf_add_dist_m,
+        kf_add_angle_deg=p.kf_add_angle_deg,
+    )
+    if store is not None:
+        # a copy: the caller's store changes only when the recording is accepted
+        base = KeyframeStore(
+            store.intrinsics,
+            [Keyframe(k.id, k.T_world_cam.copy(), k.gray, k.depth_m) for k in store.keyframes],
+        )
+        tracker: Any = _AppendingTracker(dp, base)
+    else:
+        tracker = DenseKeyframeTracker(dp)
+    t0 = time.perf_counter()
+    n = lost = 0
+    kept: list[PosedFrame] = []
+    traj: dict[int, F64] = {}
+    stopped = False
+    total = len(source) if hasattr(source, "__len__") else 0
+    for frame in source.frames():
+        if should_stop():
+            stopped = True
+            break
+        if p.max_frames and n >= p.max_frames:
+            break
+        known = {k.id for k in tracker.store.keyframes} if tracker.store is not None else set()
+        res = tracker.track(frame)
+        n += 1
+        good = res.state.is_good
+        if not good:
+            lost += 1
+        new_kf = None
+        st = tracker.store
+        if st is not None:
+            added = [k for k in st.keyframes if k.id not in known]
+            if added:
+                k = added[-1]
+                new_kf = NewKeyframe(
+                    k.id,
+                    readonly(k.T_world_cam.copy()),
+                    thumbnail(k.gray),
+                    float(np.mean(k.depth_m > 0)),
+                )
+        if good and res.T_world_cam is not None:
+            T = np.array(res.T_world_cam, dtype=np.float64)
+            traj[frame.index] = T
+            if (
+                new_kf is None
+                and frame.depth_m is not None
+                and frame.color_bgr is not None
+                and n % p.keep_every == 0
+                and len(kept) < p.max_kept_frames
+            ):
+                gray = (
+                    frame.color_bgr
+                    if frame.color_bgr.ndim == 2
+                    else cv2.cvtColor(frame.color_bgr, cv2.COLOR_BGR2GRAY)
+                )
+                kept.append(PosedFrame(frame.index, gray, frame.depth_m, readonly(T)))  # type: ignore[arg-type]
+        if on_progress is not None:
+            on_progress(
+                SweepProgress(
+                    frame.index,
+                    n,
+                    len(st) if st is not None else 0,
+                    lost,
+                    res.state.name,
+                    not good,
+                    None
+                    if res.T_world_cam is None
+                    else readonly(np.array(res.T_world_cam, dtype=np.float64)),
+                    new_kf,
+                    total,
+                )
+            )
+    st = tracker.store
+    if st is None or len(st) == 0:
+        raise TrackerError(
+            f"sweep of {getattr(source, 'name', source)}: no frames with depth, no keyframes"
+        )
+    return SweepRecording(st, tuple(kept), traj, n, lost, time.perf_counter() - t0, stopped)
+
+
+def _appending_tracker_cls() -> type:
+    from engine.dense.tracking import DenseKeyframeTracker
+
+    class Appending(DenseKeyframeTracker):  # type: ignore[misc, valid-type]
+        """Keyframe tracker on a given store that still adds keyframes (a second sweep)."""
+
+        def reset(self) -> None:
+            super().reset()
+            self._online = True
+
+    return Appending
+
+
+def _AppendingTracker(params: Any, store: Any) -> Any:
+    return _appending_tracker_cls()(params, store)
+
+
+def delete_keyframe(store: Any, kf_id: int) -> Any:
+    """A copy of ``store`` without keyframe ``kf_id`` (KeyError if absent)."""
+    from engine.dense.keyframes import KeyframeStore
+
+    store.by_id(kf_id)
+    return KeyframeStore(store.intrinsics, [k for k in store.keyframes if k.id != kf_id])
+
+
+def with_poses(store: Any, T_world_cam: dict[int, F64]) -> Any:
+    """A copy of ``store`` with some keyframe poses replaced (e.g. after SBA)."""
+    from engine.dense.keyframes import Keyframe, KeyframeStore
+
+    return KeyframeStore(
+        store.intrinsics,
+        [
+            Keyframe(
+                k.id,
+                np.array(T_world_cam.get(k.id, k.T_world_cam), dtype=np.float64),
+                k.gray,
+                k.depth_m,
+            )
+            for k in store.keyframes
+        ],
+    )
+
+
+def with_depths(store: Any, depth_m: dict[int, NDArray[np.float32]]) -> Any:
+    """A copy of ``store`` with some keyframe depth maps replaced (e.g. after fusion)."""
+    from engine.dense.keyframes import Keyframe, KeyframeStore
+
+    return KeyframeStore(
+        store.intrinsics,
+        [
+            Keyframe(k.id, k.T_world_cam.copy(), k.gray, depth_m.get(k.id, k.depth_m))
+            for k in store.keyframes
+        ],
+    )

@@ -1,0 +1,300 @@
+"""Studio project folder: calibration, keyframe store, annotations, presenter models, params.
+
+A project is what the operator prepares before a show (Tykkälä 2014 sec. 6.1: sweep, fuse,
+annotate, bundle-adjust). Layout::
+
+    project.json        {"format": "studiotrack-project", "version": 1, "name": ...,
+                         "revision": 3, "data": "rev-0003", "saved_utc": ...}
+    project.json.bak    the previous project.json (points at the previous revision)
+    rev-0003/           the current revision, written completely before project.json
+        camera.json         calibration (engine.camera format), optional
+        keyframes/          keyframe store (engine.dense.keyframes format), optional
+        annotations.json    annotated points: observations per keyframe, 3D point
+        presenter.json      presenter models slot (JSON objects by name)
+        params.json         parameter groups (JSON objects by group name)
+    rev-0002/           the previous revision = the backup of the previous version
+
+Saving writes a new ``rev-NNNN`` folder through a temporary name, renames it, then replaces
+``project.json`` atomically (the commit point): a crash at any moment leaves the previous
+version loadable. Only after the commit are revisions older than the previous one removed.
+Opening never writes anything.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import Intrinsics
+from engine.errors import CalibrationError, StudioTrackError
+
+F64 = NDArray[np.float64]
+
+PROJECT_FORMAT = "studiotrack-project"
+PROJECT_VERSION = 1
+INDEX_NAME = "project.json"
+ANNOTATIONS_FORMAT = "studiotrack-annotations"
+
+
+class ProjectError(StudioTrackError):
+    """A studio project cannot be opened or saved (missing, corrupt, newer version...)."""
+
+
+@dataclass
+class AnnotatedPoint:
+    """One physical point clicked by the operator in several keyframes.
+
+    ``observations_px`` maps keyframe id -> (u, v) pixel (distorted image coordinates);
+    ``X_world`` is the current 3D estimate (None until triangulated / bundle-adjusted).
+    """
+
+    id: int
+    observations_px: dict[int, tuple[float, float]] = field(default_factory=dict)
+    X_world: F64 | None = None
+    label: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "label": self.label,
+            "observations_px": {
+                str(k): [float(u), float(v)] for k, (u, v) in sorted(self.observations_px.items())
+            },
+            "X_world": None if self.X_world is None else [float(x) for x in self.X_world],
+        }
+
+    @classmethod
+    def from_json(cls, d: Any, where: str) -> AnnotatedPoint:
+        try:
+            obs = {int(k): (float(v[0]), float(v[1])) for k, v in d["observations_px"].items()}
+            X = d.get("X_world")
+            X_world = None if X is None else np.asarray([float(x) for x in X], dtype=np.float64)
+            if X_world is not None and X_world.shape != (3,):
+                raise ValueError("X_world must have 3 numbers")
+            return cls(int(d["id"]), obs, X_world, str(d.get("label", "")))
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+            raise ProjectError(f"{where}: malformed annotated point ({exc!s})") from None
+
+
+@dataclass
+class Project:
+    """In-memory studio project; ``save``/``open_project`` move it to and from a folder."""
+
+    name: str = "studio"
+    intrinsics: Intrinsics | None = None
+    keyframes: Any | None = None  # engine.dense.keyframes.KeyframeStore
+    annotations: list[AnnotatedPoint] = field(default_factory=list)
+    presenter_models: dict[str, Any] = field(default_factory=dict)
+    params: dict[str, Any] = field(default_factory=dict)
+    folder: Path | None = None
+    revision: int = 0
+    dirty: bool = False
+
+    def mark_dirty(self) -> None:
+        self.dirty = True
+
+    def next_point_id(self) -> int:
+        return 1 + max((p.id for p in self.annotations), default=-1)
+
+    # -- saving --------------------------------------------------------------------------
+    def save(self, folder: str | Path | None = None) -> Path:
+        """Write the project to ``folder`` (default: where it was opened/saved)."""
+        target = Path(folder) if folder is not None else self.folder
+        if target is None:
+            raise ProjectError("project has no folder yet: use Save As")
+        if target.exists() and not target.is_dir():
+            raise ProjectError(f"{target}: exists and is not a folder")
+        index_path = target / INDEX_NAME
+        prev_rev = 0
+        prev_data: str | None = None
+        if index_path.exists():
+            try:
+                prev = _read_index(target)
+                prev_rev, prev_data = int(prev["revision"]), str(prev["data"])
+            except ProjectError:
+                # a damaged index is kept as a backup file, never overwritten silently
+                prev_rev = _max_revision(target)
+        elif target.is_dir() and any(target.iterdir()):
+            raise ProjectError(f"{target}: folder is not empty and holds no {INDEX_NAME}")
+        target.mkdir(parents=True, exist_ok=True)
+        _remove_stale_temps(target)
+        rev = max(prev_rev, _max_revision(target)) + 1
+        data_name = f"rev-{rev:04d}"
+        tmp = target / f".{data_name}.tmp"
+        if tmp.exists():
+            shutil.rmtree(tmp)
+        try:
+            self._write_data(tmp)
+            tmp.rename(target / data_name)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                shutil.rmtree(tmp)
+            raise
+        from engine.persist import atomic_write_json, backup_existing
+
+        if index_path.exists():
+            backup_existing(index_path)  # project.json.bak -> previous revision
+        index = {
+            "format": PROJECT_FORMAT,
+            "version": PROJECT_VERSION,
+            "name": self.name,
+            "revision": rev,
+            "data": data_name,
+            "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+        atomic_write_json(index_path, index)  # the commit point
+        # keep the current and the previous revision (the backup), drop older ones
+        if prev_data is not None:  # after a damaged index, remove nothing
+            keep = {data_name, prev_data}
+            for old in target.glob("rev-*"):
+                if old.is_dir() and old.name not in keep:
+                    shutil.rmtree(old, ignore_errors=True)
+        self.folder, self.revision, self.dirty = target, rev, False
+        return index_path
+
+    def _write_data(self, data: Path) -> None:
+        from engine.camera import save_camera_json
+        from engine.persist import atomic_write_json
+
+        data.mkdir(parents=True)
+        if self.intrinsics is not None:
+            save_camera_json(self.intrinsics, data / "camera.json")
+        if self.keyframes is not None:
+            self.keyframes.save(data / "keyframes")
+        atomic_write_json(
+            data / "annotations.json",
+            {
+                "format": ANNOTATIONS_FORMAT,
+                "version": 1,
+                "points": [p.to_json() for p in self.annotations],
+            },
+        )
+        atomic_write_json(data / "presenter.json", {"version": 1, "models": self.presenter_models})
+        atomic_write_json(data / "params.json", {"version": 1, "groups": self.params})
+
+
+def new_project(name: str = "studio", intrinsics: Intrinsics | None = None) -> Project:
+    """An empty, unsaved project (not dirty until something is added: closing an empty
+    project asks nothing)."""
+    return Project(name=name, intrinsics=intrinsics, dirty=False)
+
+
+def open_project(folder: str | Path) -> Project:
+    """Read a project; corrupt, missing or newer-version projects raise ProjectError.
+
+    Nothing on disk is written or removed.
+    """
+    folder = Path(folder)
+    if folder.name == INDEX_NAME and folder.is_file():
+        folder = folder.parent
+    index = _read_index(folder)
+    data = folder / str(index["data"])
+    if not data.is_dir():
+        raise ProjectError(f"{data}: revision folder named in {folder / INDEX_NAME} is missing")
+    intr = None
+    if (data / "camera.json").exists():
+        from engine.camera import load_camera_json
+
+        try:
+            intr = load_camera_json(data / "camera.json")
+        except CalibrationError as exc:
+            raise ProjectError(str(exc)) from None
+    store = None
+    if (data / "keyframes").exists():
+        from engine.dense.keyframes import KeyframeStore, KeyframeStoreError
+
+        try:
+            store = KeyframeStore.load(data / "keyframes")
+        except KeyframeStoreError as exc:
+            raise ProjectError(str(exc)) from None
+    ann = _read_json(data / "annotations.json")
+    if not isinstance(ann, dict) or ann.get("format") != ANNOTATIONS_FORMAT:
+        raise ProjectError(f"{data / 'annotations.json'}: not a {ANNOTATIONS_FORMAT} file")
+    if not isinstance(ann.get("version"), int) or ann["version"] > 1:
+        raise ProjectError(
+            f"{data / 'annotations.json'}: version {ann.get('version')!r} is newer than "
+            "this StudioTrack supports (1)"
+        )
+    pts_raw = ann.get("points")
+    if not isinstance(pts_raw, list):
+        raise ProjectError(f"{data / 'annotations.json'}: 'points' must be a list")
+    points = [
+        AnnotatedPoint.from_json(p, f"{data / 'annotations.json'} point #{i}")
+        for i, p in enumerate(pts_raw)
+    ]
+    pres = _read_json(data / "presenter.json")
+    params = _read_json(data / "params.json")
+    if not isinstance(pres, dict) or not isinstance(pres.get("models"), dict):
+        raise ProjectError(f"{data / 'presenter.json'}: expected {{'models': {{...}}}}")
+    if not isinstance(params, dict) or not isinstance(params.get("groups"), dict):
+        raise ProjectError(f"{data / 'params.json'}: expected {{'groups': {{...}}}}")
+    return Project(
+        name=str(index.get("name", folder.name)),
+        intrinsics=intr if intr is not None else (store.intrinsics if store is not None else None),
+        keyframes=store,
+        annotations=points,
+        presenter_models=dict(pres["models"]),
+        params=dict(params["groups"]),
+        folder=folder,
+        revision=int(index["revision"]),
+        dirty=False,
+    )
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ProjectError(f"{path}: not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProjectError(f"{path}: cannot read ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise ProjectError(f"{path}: corrupt JSON at line {exc.lineno} ({exc.msg})") from None
+
+
+def _read_index(folder: Path) -> dict[str, Any]:
+    if not folder.is_dir():
+        raise ProjectError(f"{folder}: project folder not found")
+    path = folder / INDEX_NAME
+    raw = _read_json(path)
+    if not isinstance(raw, dict) or raw.get("format") != PROJECT_FORMAT:
+        raise ProjectError(f"{path}: not a StudioTrack project ({PROJECT_FORMAT})")
+    version = raw.get("version")
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise ProjectError(f"{path}: 'version' must be an integer, got {version!r}")
+    if version > PROJECT_VERSION:
+        raise ProjectError(
+            f"{path}: project version {version} is newer than this StudioTrack supports "
+            f"({PROJECT_VERSION}); update StudioTrack"
+        )
+    if version < 1:
+        raise ProjectError(f"{path}: unknown project version {version}")
+    data = raw.get("data")
+    rev = raw.get("revision")
+    if not isinstance(data, str) or not data.startswith("rev-") or "/" in data or "\\" in data:
+        raise ProjectError(f"{path}: 'data' must name a rev-NNNN folder, got {data!r}")
+    if not isinstance(rev, int):
+        raise ProjectError(f"{path}: 'revision' must be an integer, got {rev!r}")
+    return raw
+
+
+def _max_revision(folder: Path) -> int:
+    best = 0
+    for p in folder.glob("rev-*"):
+        with contextlib.suppress(ValueError):
+            best = max(best, int(p.name[4:]))
+    return best
+
+
+def _remove_stale_temps(folder: Path) -> None:
+    """Temporary revision folders of an interrupted save (never referenced by project.json)."""
+    for p in folder.glob(".rev-*.tmp"):
+        shutil.rmtree(p, ignore_errors=True)

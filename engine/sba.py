@@ -1,0 +1,678 @@
+"""Sparse bundle adjustment of keyframe poses and annotated points (Tykkälä 2014 sec. 6.1).
+
+"Sparse bundle adjustment can be used to remove the small global error at the end of the
+estimated camera trajectory [...] dense tracking provides a very good initial guess of the
+pose configuration. To be able to execute SBA, few 3D points and their 2D correspondence are
+required from the user" (sec. 6.1, Fig. 11).
+
+Unknowns: the poses ``T_cam_world`` of every annotated keyframe except the gauge keyframe
+(held fixed: it removes the 6-DOF gauge freedom) and the 3D points ``X_world``. Residuals:
+
+- reprojection ``u_ij - pi(K, D(R_i X_j + t_i))`` in pixels with the Caltech distortion of
+  eq. (2)-(4) (:func:`engine.camera.project`), per observation;
+- a depth term ``(z_ij - d_i(u_ij)) / sigma_z`` where the keyframe's depth map is valid: the
+  RGB-D depth fixes the metric scale, which reprojection alone leaves free (a 7th gauge
+  freedom for a single fixed keyframe).
+
+Both go through a robust loss (Huber by default), solved by ``scipy.optimize.least_squares``
+with a block-sparse Jacobian pattern (``jac_sparsity``): each residual depends on one pose
+(6 columns) and one point (3 columns).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import Intrinsics, backproject, project
+from engine.errors import StudioTrackError
+from engine.geometry import invert
+
+F64 = NDArray[np.float64]
+
+
+class SBAError(StudioTrackError):
+    """Bundle adjustment cannot run: too few points, a degenerate configuration..."""
+
+
+@dataclass(frozen=True, slots=True)
+class SBAParams:
+    """Bundle adjustment settings (one group; units in the names)."""
+
+    min_points: int = field(
+        default=6,
+        metadata={"help": "points seen in 2+ keyframes needed to run", "min": 3, "max": 1000},
+    )
+    min_points_per_keyframe: int = field(
+        default=3,
+        metadata={"help": "annotated points a refined keyframe needs", "min": 3, "max": 100},
+    )
+    loss: str = field(
+        default="cauchy",
+        metadata={"help": "robust loss: linear|huber|soft_l1|cauchy (cauchy ignores mis-clicks)"},
+    )
+    loss_scale_px: float = field(
+        default=2.0,
+        metadata={
+            "help": "robust loss scale (px): larger residuals are down-weighted",
+            "min": 0.1,
+            "max": 100.0,
+        },
+    )
+    use_depth: bool = field(
+        default=True,
+        metadata={"help": "use the keyframe depth at each observation (fixes the metric scale)"},
+    )
+    depth_sigma_rel: float = field(
+        default=0.01,
+        metadata={"help": "depth noise as a fraction of the depth", "min": 1e-4, "max": 1.0},
+    )
+    max_nfev: int = field(
+        default=200, metadata={"help": "function evaluations", "min": 5, "max": 10000}
+    )
+    depth_edge_rel: float = field(
+        default=0.03,
+        metadata={
+            "help": "no depth term where the 3x3 depths spread more than "
+            "this fraction (a depth edge)",
+            "min": 0.0,
+            "max": 10.0,
+        },
+    )
+    pose_prior_m: float = field(
+        default=0.0,
+        metadata={
+            "help": "weak prior on each keyframe's tracked camera position "
+            "(m, 1 sigma; 0: none): damps directions the points leave "
+            "nearly free (long sweeps of a flat studio)",
+            "min": 0.0,
+            "max": 10.0,
+        },
+    )
+    pose_prior_deg: float = field(
+        default=0.0,
+        metadata={
+            "help": "weak prior on each keyframe's tracked orientation (deg, 1 sigma; 0: none)",
+            "min": 0.0,
+            "max": 180.0,
+        },
+    )
+    min_spread_px: float = field(
+        default=3.0,
+        metadata={
+            "help": "points of a keyframe spanning less than this across "
+            "their main line count as collinear",
+            "min": 0.0,
+            "max": 100.0,
+        },
+    )
+
+    def __post_init__(self) -> None:
+        from engine.errors import ParamsError
+
+        if self.loss not in ("linear", "huber", "soft_l1", "cauchy", "arctan"):
+            raise ParamsError(
+                f"SBA loss {self.loss!r} is not one of linear, huber, soft_l1, cauchy"
+            )
+        if self.min_points < 3 or self.min_points_per_keyframe < 3:
+            raise ParamsError("SBA needs at least 3 points (min_points, min_points_per_keyframe)")
+        if not (self.loss_scale_px > 0 and self.depth_sigma_rel > 0 and self.max_nfev > 0):
+            raise ParamsError("SBA loss_scale_px, depth_sigma_rel and max_nfev must be positive")
+
+
+@dataclass(frozen=True, slots=True)
+class Observation:
+    """Point ``point_id`` seen at pixel (u, v) of keyframe ``kf_id``."""
+
+    point_id: int
+    kf_id: int
+    u: float
+    v: float
+
+
+@dataclass(frozen=True)
+class SBAResult:
+    gauge_id: int
+    T_world_cam_before: dict[int, F64]
+    T_world_cam_after: dict[int, F64]
+    X_world_after: dict[int, F64]
+    rmse_before_px: float
+    rmse_after_px: float
+    point_rmse_before_px: dict[int, float]
+    point_rmse_after_px: dict[int, float]
+    keyframe_rmse_before_px: dict[int, float]
+    keyframe_rmse_after_px: dict[int, float]
+    pose_change: dict[int, tuple[float, float]]  # kf id -> (centre moved m, rotated deg)
+    unadjusted_ids: tuple[int, ...]  # keyframes without annotations: left as they were
+    ignored_point_ids: tuple[int, ...]  # points seen in one keyframe only
+    seconds: float
+    nfev: int
+    message: str
+
+
+def _rotvec_to_R(r: F64) -> F64:
+    """Rodrigues for an (N, 3) array of rotation vectors -> (N, 3, 3)."""
+    theta = np.linalg.norm(r, axis=1)
+    small = theta < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0, np.sin(theta) / safe)
+    b = np.where(small, 0.5, (1.0 - np.cos(theta)) / (safe * safe))
+    n = r.shape[0]
+    W = np.zeros((n, 3, 3))
+    W[:, 0, 1], W[:, 0, 2] = -r[:, 2], r[:, 1]
+    W[:, 1, 0], W[:, 1, 2] = r[:, 2], -r[:, 0]
+    W[:, 2, 0], W[:, 2, 1] = -r[:, 1], r[:, 0]
+    return np.eye(3)[None] + a[:, None, None] * W + b[:, None, None] * (W @ W)
+
+
+def _robust_weight(e: F64, loss: str, scale: float) -> F64:
+    """IRLS weight w(e) = rho'(e^2) of scipy's loss functions at scale ``scale``."""
+    z = (e / scale) ** 2
+    if loss == "huber":
+        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300)))
+    if loss == "soft_l1":
+        return 1.0 / np.sqrt(1.0 + z)
+    if loss == "cauchy":
+        return 1.0 / (1.0 + z)
+    if loss == "arctan":
+        return 1.0 / (1.0 + z * z)
+    return np.ones_like(e)
+
+
+def collect_observations(points: Sequence[object]) -> list[Observation]:
+    """Observations of :class:`engine.project.AnnotatedPoint` s (``observations_px``)."""
+    obs = []
+    for p in points:
+        for kf_id, (u, v) in sorted(p.observations_px.items()):  # type: ignore[attr-defined]
+            obs.append(Observation(int(p.id), int(kf_id), float(u), float(v)))  # type: ignore[attr-defined]
+    return obs
+
+
+def depth_at(
+    depth_m: NDArray[np.floating],
+    u: float,
+    v: float,
+    radius: int = 1,
+    max_rel_spread: float = math.inf,
+) -> float:
+    """Median valid depth in a (2r+1)^2 window around the nearest pixel; NaN if none, or if
+    the window's depths spread more than ``max_rel_spread`` x median (a depth edge, where
+    the pixel may belong to either surface)."""
+    h, w = depth_m.shape
+    iu, iv = round(u), round(v)
+    if not (0 <= iu < w and 0 <= iv < h):
+        return math.nan
+    win = depth_m[max(0, iv - radius) : iv + radius + 1, max(0, iu - radius) : iu + radius + 1]
+    vals = win[np.isfinite(win) & (win > 0)]
+    if not vals.size:
+        return math.nan
+    med = float(np.median(vals))
+    if float(vals.max() - vals.min()) > max_rel_spread * med:
+        return math.nan
+    return med
+
+
+def check_configuration(
+    obs: Sequence[Observation],
+    kf_ids: Sequence[int],
+    gauge_id: int,
+    params: SBAParams,
+    fixed_ids: Sequence[int] = (),
+) -> tuple[list[Observation], list[int], list[int], list[int]]:
+    """Validate; return (usable observations, adjusted kf ids, unadjusted, ignored points).
+
+    Raises :class:`SBAError` naming what is missing.
+    """
+    known = set(kf_ids)
+    bad = sorted({o.kf_id for o in obs if o.kf_id not in known})
+    if bad:
+        raise SBAError(f"SBA: annotations refer to keyframe(s) {bad} that are not in the store")
+    per_point: dict[int, set[int]] = {}
+    for o in obs:
+        per_point.setdefault(o.point_id, set()).add(o.kf_id)
+    ignored = sorted(p for p, ks in per_point.items() if len(ks) < 2)
+    good_pts = {p for p, ks in per_point.items() if len(ks) >= 2}
+    use = [o for o in obs if o.point_id in good_pts]
+    if len(good_pts) < params.min_points:
+        raise SBAError(
+            f"SBA: {len(good_pts)} point(s) are annotated in 2+ keyframes, at least "
+            f"{params.min_points} are needed: annotate {params.min_points - len(good_pts)} more"
+        )
+    per_kf: dict[int, list[Observation]] = {}
+    for o in use:
+        per_kf.setdefault(o.kf_id, []).append(o)
+    if gauge_id not in per_kf:
+        raise SBAError(
+            f"SBA: the gauge keyframe {gauge_id} (held fixed) has no annotated points: "
+            f"annotate at least {params.min_points_per_keyframe} points in it"
+        )
+    few = [
+        (k, len(v))
+        for k, v in sorted(per_kf.items())
+        if k != gauge_id and k not in fixed_ids and len(v) < params.min_points_per_keyframe
+    ]
+    if few:
+        desc = ", ".join(f"keyframe {k} has {n}" for k, n in few)
+        raise SBAError(
+            f"SBA: too few annotated points ({desc}); each refined keyframe needs at least "
+            f"{params.min_points_per_keyframe}"
+        )
+    for k, lst in sorted(per_kf.items()):
+        uv = np.array([[o.u, o.v] for o in lst])
+        s = np.linalg.svd(uv - uv.mean(axis=0), compute_uv=False)
+        spread = s[1] / math.sqrt(len(lst)) if len(s) > 1 else 0.0
+        if spread < params.min_spread_px:
+            raise SBAError(
+                f"SBA: the annotated points of keyframe {k} lie (almost) on one line "
+                f"(spread {spread:.1f} px): annotate a point away from that line"
+            )
+    # connectivity through shared points, from the gauge
+    reached, frontier = {gauge_id}, [gauge_id]
+    kf_of_point = {p: ks for p, ks in per_point.items() if p in good_pts}
+    while frontier:
+        k = frontier.pop()
+        for ks in kf_of_point.values():
+            if k in ks:
+                for k2 in ks - reached:
+                    reached.add(k2)
+                    frontier.append(k2)
+    cut = sorted(set(per_kf) - reached)
+    if cut:
+        raise SBAError(
+            f"SBA: keyframe(s) {cut} share no annotated point (directly or through others) "
+            f"with the gauge keyframe {gauge_id}: annotate a point seen in both"
+        )
+    adjusted = sorted(per_kf)
+    unadjusted = sorted(set(kf_ids) - set(adjusted))
+    return use, adjusted, unadjusted, ignored
+
+
+def initial_points(
+    intr: Intrinsics,
+    T_world_cam: Mapping[int, F64],
+    obs: Sequence[Observation],
+    depth_maps: Mapping[int, NDArray[np.floating]] | None,
+    given: Mapping[int, F64] | None = None,
+) -> dict[int, F64]:
+    """Starting 3D points: given ones, else the median back-projection over observations
+    with depth, else a linear (DLT) triangulation."""
+    by_pt: dict[int, list[Observation]] = {}
+    for o in obs:
+        by_pt.setdefault(o.point_id, []).append(o)
+    out: dict[int, F64] = {}
+    for pid, lst in by_pt.items():
+        if given is not None and pid in given and given[pid] is not None:
+            out[pid] = np.asarray(given[pid], dtype=np.float64)
+            continue
+        cands = []
+        if depth_maps is not None:
+            for o in lst:
+                z = (
+                    depth_at(depth_maps[o.kf_id], o.u, o.v, 1, 0.03)
+                    if o.kf_id in depth_maps
+                    else math.nan
+                )
+                if math.isfinite(z):
+                    p_cam = backproject(intr, np.array([[o.u, o.v]]), np.array([z]))[0]
+                    T = T_world_cam[o.kf_id]
+                    cands.append(T[:3, :3] @ p_cam + T[:3, 3])
+        if cands:
+            out[pid] = np.median(np.array(cands), axis=0)
+        else:
+            out[pid] = _triangulate(intr, T_world_cam, lst)
+    return out
+
+
+def _triangulate(
+    intr: Intrinsics, T_world_cam: Mapping[int, F64], lst: Sequence[Observation]
+) -> F64:
+    from engine.camera import pixels_to_normalized
+
+    rows = []
+    for o in lst:
+        x, y = pixels_to_normalized(intr, np.array([[o.u, o.v]]))[0]
+        P = invert(T_world_cam[o.kf_id])[:3, :]
+        rows.append(x * P[2] - P[0])
+        rows.append(y * P[2] - P[1])
+    _, _, vt = np.linalg.svd(np.array(rows))
+    X = vt[-1]
+    if abs(X[3]) < 1e-12:
+        raise SBAError(f"SBA: point {lst[0].point_id} cannot be triangulated (parallel rays)")
+    return X[:3] / X[3]
+
+
+def bundle_adjust(
+    intr: Intrinsics,
+    T_world_cam: Mapping[int, F64],
+    obs: Sequence[Observation],
+    *,
+    depth_maps: Mapping[int, NDArray[np.floating]] | None = None,
+    points_init: Mapping[int, F64] | None = None,
+    gauge_id: int | None = None,
+    params: SBAParams | None = None,
+    fixed_ids: Sequence[int] = (),
+) -> SBAResult:
+    """Refine keyframe poses and 3D points; the gauge keyframe (default: lowest id) is fixed,
+    and so are ``fixed_ids`` (keyframes the operator trusts, e.g. the start of the sweep: the
+    paper's SBA removes "the small global error at the end of the trajectory")."""
+    from scipy.optimize import least_squares
+    from scipy.sparse import coo_matrix
+
+    p = params or SBAParams()
+    t0 = time.perf_counter()
+    kf_ids = sorted(T_world_cam)
+    if not kf_ids:
+        raise SBAError("SBA: no keyframes")
+    gauge = kf_ids[0] if gauge_id is None else gauge_id
+    use, adjusted, unadjusted, ignored = check_configuration(
+        obs, kf_ids, gauge, p, tuple(fixed_ids)
+    )
+    fixed = {gauge, *(int(k) for k in fixed_ids)}
+    free = [k for k in adjusted if k not in fixed]
+    free_idx = {k: i for i, k in enumerate(free)}
+    pt_ids = sorted({o.point_id for o in use})
+    pt_idx = {pid: i for i, pid in enumerate(pt_ids)}
+    X0 = initial_points(intr, T_world_cam, use, depth_maps, points_init)
+    n_f, n_p = len(free), len(pt_ids)
+
+    # fixed per-keyframe reference (initial T_cam_world); unknowns are left-multiplied deltas
+    T_cw0 = {k: invert(np.asarray(T_world_cam[k], dtype=np.float64)) for k in adjusted}
+    R0 = np.array([T_cw0[k][:3, :3] for k in adjusted])
+    t0v = np.array([T_cw0[k][:3, 3] for k in adjusted])
+    kf_row = {k: i for i, k in enumerate(adjusted)}
+    o_kf = np.array([kf_row[o.kf_id] for o in use])
+    o_free = np.array([free_idx.get(o.kf_id, -1) for o in use])
+    o_pt = np.array([pt_idx[o.point_id] for o in use])
+    uv = np.array([[o.u, o.v] for o in use])
+    z_obs = np.full(len(use), np.nan)
+    if p.use_depth and depth_maps is not None:
+        for i, o in enumerate(use):
+            if o.kf_id in depth_maps:
+                z_obs[i] = depth_at(depth_maps[o.kf_id], o.u, o.v, 1, p.depth_edge_rel)
+    has_z = np.isfinite(z_obs)
+    z_idx = np.nonzero(has_z)[0]
+    sigma_z = p.depth_sigma_rel * z_obs[has_z]
+
+    def unpack(x: F64) -> tuple[F64, F64, F64]:
+        poses = x[: 6 * n_f].reshape(n_f, 6)
+        X = x[6 * n_f :].reshape(n_p, 3)
+        dR = np.repeat(np.eye(3)[None], len(adjusted), axis=0)
+        dt = np.zeros((len(adjusted), 3))
+        if n_f:
+            rows = np.array([kf_row[k] for k in free])
+            dR[rows] = _rotvec_to_R(poses[:, 3:])
+            dt[rows] = poses[:, :3]
+        R = dR @ R0  # T_cw = [dR | dt] T_cw0
+        t = np.einsum("nij,nj->ni", dR, t0v) + dt
+        return R, t, X
+
+    def residuals(x: F64, pose_mask: bool = True) -> F64:
+        R, t, X = unpack(x)
+        p_cam = np.einsum("nij,nj->ni", R[o_kf], X[o_pt]) + t[o_kf]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            pix = project(intr, p_cam)  # eq. (2)-(4)
+        r_px = np.nan_to_num(pix - uv, nan=1e3).ravel()
+        parts = [r_px]
+        if z_idx.size:
+            parts.append((p_cam[z_idx, 2] - z_obs[z_idx]) / sigma_z)
+        if n_prior:
+            # dt of T_cw = [dR | dt] T_cw0 is the camera-centre change (C = C0 - R^T dt)
+            poses = x[: 6 * n_f].reshape(n_f, 6)
+            parts.append((poses[:, :3] * prior_w[:3]).ravel())
+            parts.append((poses[:, 3:] * prior_w[3:]).ravel())
+        return np.concatenate(parts)
+
+    use_prior = p.pose_prior_m > 0 and p.pose_prior_deg > 0  # both or none
+    n_prior = n_f if use_prior else 0
+    prior_w = np.array(
+        [1.0 / p.pose_prior_m] * 3 + [1.0 / math.radians(p.pose_prior_deg)] * 3
+        if use_prior
+        else [0.0] * 6
+    )
+    n_res = 2 * len(use) + int(z_idx.size) + 6 * n_prior
+    n_var = 6 * n_f + 3 * n_p
+    # block sparsity: residual row -> its keyframe's 6 pose columns and its point's 3 columns
+    row_obs = np.concatenate([np.repeat(np.arange(len(use)), 2), z_idx])
+    rows_all = np.arange(row_obs.size)
+    rr, cc = [], []
+    pf = o_free[row_obs]
+    has_pose = pf >= 0
+    for j in range(6):
+        rr.append(rows_all[has_pose])
+        cc.append(6 * pf[has_pose] + j)
+    for j in range(3):
+        rr.append(rows_all)
+        cc.append(6 * n_f + 3 * o_pt[row_obs] + j)
+    r0 = 2 * len(use) + int(z_idx.size)
+    for j in range(3):  # prior rows: position block then rotation block, per free keyframe
+        rr.append(r0 + 3 * np.arange(n_prior) + j)
+        cc.append(6 * np.arange(n_prior) + j)
+        rr.append(r0 + 3 * n_prior + 3 * np.arange(n_prior) + j)
+        cc.append(6 * np.arange(n_prior) + 3 + j)
+    A = coo_matrix(
+        (np.ones(sum(len(r) for r in rr), np.int8), (np.concatenate(rr), np.concatenate(cc))),
+        shape=(n_res, n_var),
+    )
+    A_csr = A.tocsr()
+    x0 = np.concatenate([np.zeros(6 * n_f), np.array([X0[pid] for pid in pt_ids]).ravel()])
+
+    # "before": the tracked poses with the best points for them (points-only refinement)
+    pts_cols = np.arange(6 * n_f, n_var)
+
+    def res_points(xp: F64) -> F64:
+        x = x0.copy()
+        x[6 * n_f :] = xp
+        return residuals(x)
+
+    pre = least_squares(
+        res_points,
+        x0[6 * n_f :],
+        jac_sparsity=A_csr[:, pts_cols],
+        method="trf",
+        max_nfev=p.max_nfev,
+    )
+    x_before = x0.copy()
+    x_before[6 * n_f :] = pre.x
+    # Robust loss by iteratively reweighted least squares: scipy's robust losses with the
+    # sparse (lsmr) trust-region solver converge slowly here, while each reweighted linear
+    # problem converges in a few Gauss-Newton steps. Weights are per observation (pixel pair
+    # together) from the previous solution, Huber/Cauchy/soft-L1 weight functions.
+    w_sqrt = np.ones(n_res)
+    x_cur = x_before
+    nfev = 0
+    sol = None
+    for _ in range(1 if p.loss == "linear" else 4):
+
+        def weighted(x: F64, w: F64 = w_sqrt) -> F64:
+            return residuals(x) * w
+
+        sol = least_squares(
+            weighted, x_cur, jac_sparsity=A_csr, method="trf", max_nfev=p.max_nfev, x_scale=1.0
+        )
+        x_cur, nfev = sol.x, nfev + int(sol.nfev)
+        if p.loss == "linear":
+            break
+        r = residuals(x_cur)
+        e_px = np.repeat(np.linalg.norm(r[: 2 * len(use)].reshape(-1, 2), axis=1), 2)
+        e = np.concatenate([e_px, np.abs(r[2 * len(use) :])])
+        w_new = np.sqrt(_robust_weight(e, p.loss, p.loss_scale_px))
+        if n_prior:
+            w_new[n_res - 6 * n_prior :] = 1.0  # the pose prior is not an outlier candidate
+        if np.allclose(w_new, w_sqrt, atol=1e-3):
+            break
+        w_sqrt = w_new
+    assert sol is not None
+
+    def px_errors(x: F64) -> F64:
+        return np.linalg.norm(residuals(x)[: 2 * len(use)].reshape(-1, 2), axis=1)
+
+    e_b, e_a = px_errors(x_before), px_errors(sol.x)
+
+    def rms(e: F64) -> float:
+        return float(np.sqrt(np.mean(e * e))) if e.size else 0.0
+
+    def group(e: F64, key: NDArray[np.int_], ids: Sequence[int]) -> dict[int, float]:
+        return {k: rms(e[key == i]) for i, k in enumerate(ids)}
+
+    R, t, X = unpack(sol.x)
+    after = {k: np.array(T_world_cam[k], dtype=np.float64) for k in kf_ids}
+    change: dict[int, tuple[float, float]] = {k: (0.0, 0.0) for k in adjusted if k in fixed}
+    for k in free:
+        T_cw = np.eye(4)
+        T_cw[:3, :3], T_cw[:3, 3] = R[kf_row[k]], t[kf_row[k]]
+        after[k] = invert(T_cw)
+        before = np.asarray(T_world_cam[k], dtype=np.float64)
+        dR = before[:3, :3].T @ after[k][:3, :3]
+        ang = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(dR) - 1.0) / 2.0))))
+        change[k] = (float(np.linalg.norm(after[k][:3, 3] - before[:3, 3])), ang)
+    return SBAResult(
+        gauge_id=gauge,
+        T_world_cam_before={k: np.array(T_world_cam[k], dtype=np.float64) for k in kf_ids},
+        T_world_cam_after=after,
+        X_world_after={pid: X[i].copy() for i, pid in enumerate(pt_ids)},
+        rmse_before_px=rms(e_b),
+        rmse_after_px=rms(e_a),
+        point_rmse_before_px=group(e_b, o_pt, pt_ids),
+        point_rmse_after_px=group(e_a, o_pt, pt_ids),
+        keyframe_rmse_before_px=group(e_b, o_kf, adjusted),
+        keyframe_rmse_after_px=group(e_a, o_kf, adjusted),
+        pose_change=change,
+        unadjusted_ids=tuple(unadjusted),
+        ignored_point_ids=tuple(ignored),
+        seconds=time.perf_counter() - t0,
+        nfev=nfev,
+        message=str(sol.message),
+    )
+
+
+def bundle_adjust_store(
+    store: object,
+    points: Sequence[object],
+    params: SBAParams | None = None,
+    gauge_id: int | None = None,
+    fixed_ids: Sequence[int] = (),
+) -> SBAResult:
+    """:func:`bundle_adjust` on a :class:`engine.dense.keyframes.KeyframeStore` and
+    :class:`engine.project.AnnotatedPoint` s (their ``X_world`` seeds the points)."""
+    kfs = store.keyframes  # type: ignore[attr-defined]
+    T = {k.id: k.T_world_cam for k in kfs}
+    depths = {k.id: k.depth_m for k in kfs}
+    given = {p.id: p.X_world for p in points if p.X_world is not None}  # type: ignore[attr-defined]
+    return bundle_adjust(
+        store.intrinsics,  # type: ignore[attr-defined]
+        T,
+        collect_observations(points),
+        depth_maps=depths,
+        points_init=given,
+        gauge_id=gauge_id,
+        params=params,
+        fixed_ids=fixed_ids,
+    )
+
+
+def reprojection_errors(
+    intr: Intrinsics,
+    T_world_cam: Mapping[int, F64],
+    points: Sequence[object],
+) -> dict[int, float]:
+    """Per-point RMS reprojection error (px) of points with ``X_world`` (NaN without)."""
+    out = {}
+    for pt in points:
+        X = pt.X_world  # type: ignore[attr-defined]
+        obs = pt.observations_px  # type: ignore[attr-defined]
+        if X is None or not obs:
+            out[pt.id] = math.nan  # type: ignore[attr-defined]
+            continue
+        errs = []
+        for k, (u, v) in obs.items():
+            if k not in T_world_cam:
+                continue
+            T_cw = invert(T_world_cam[k])
+            pix = project(intr, (T_cw[:3, :3] @ X + T_cw[:3, 3])[None])[0]
+            errs.append(float(np.hypot(pix[0] - u, pix[1] - v)))
+        out[pt.id] = float(np.sqrt(np.mean(np.square(errs)))) if errs else math.nan  # type: ignore[attr-defined]
+    return out
+
+
+@dataclass(frozen=True)
+class SyntheticProblem:
+    """Generated SBA test case: true and perturbed poses, points and observations."""
+
+    intrinsics: Intrinsics
+    T_world_cam_true: dict[int, F64]
+    T_world_cam_noisy: dict[int, F64]
+    X_world_true: dict[int, F64]
+    observations: list[Observation]
+    depth_maps: dict[int, NDArray[np.float32]]
+
+
+def synthetic_problem(
+    n_keyframes: int = 30,
+    n_points: int = 40,
+    *,
+    seed: int = 0,
+    n_perturbed: int = 5,
+    err_m: float = 0.05,
+    err_deg: float = 1.5,
+    pixel_noise: float = 0.3,
+    depth_noise_rel: float = 0.003,
+    intrinsics: Intrinsics | None = None,
+) -> SyntheticProblem:
+    """Keyframes on a 3 m rail looking at a studio-sized point set; the last
+    ``n_perturbed`` keyframes get a growing pose error (drift at the end of a sweep, Fig. 11)."""
+    from engine.geometry import se3_exp
+
+    rng = np.random.default_rng(seed)
+    intr = intrinsics or Intrinsics()
+    X = np.column_stack(
+        [
+            rng.uniform(-2.0, 2.0, n_points),
+            rng.uniform(-1.2, 0.8, n_points),
+            rng.uniform(3.0, 5.5, n_points),
+        ]
+    )
+    T_true, T_noisy = {}, {}
+    for i in range(n_keyframes):
+        s = i / max(1, n_keyframes - 1)
+        yaw = math.radians(-12.0 + 24.0 * s)
+        R = np.array(
+            [[math.cos(yaw), 0, math.sin(yaw)], [0, 1, 0], [-math.sin(yaw), 0, math.cos(yaw)]]
+        )
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = [-1.5 + 3.0 * s, 0.05 * math.sin(3 * s), 0.0]
+        T_true[i] = T
+        k = i - (n_keyframes - n_perturbed)
+        if k >= 0:
+            g = (k + 1) / n_perturbed
+            d = rng.normal(size=6)
+            d[:3] *= err_m * g / np.linalg.norm(d[:3])
+            d[3:] *= math.radians(err_deg) * g / np.linalg.norm(d[3:])
+            T_noisy[i] = T @ se3_exp(d)
+        else:
+            T_noisy[i] = T.copy()
+    obs, depths = [], {}
+    for i, T in T_true.items():
+        T_cw = invert(T)
+        pc = X @ T_cw[:3, :3].T + T_cw[:3, 3]
+        uv = project(intr, pc)
+        dm = np.zeros((intr.height, intr.width), np.float32)
+        for j in range(n_points):
+            u, v = uv[j] + rng.normal(scale=pixel_noise, size=2)
+            if pc[j, 2] > 0.1 and 1 <= u < intr.width - 2 and 1 <= v < intr.height - 2:
+                obs.append(Observation(j, i, float(u), float(v)))
+                dm[round(v) - 1 : round(v) + 2, round(u) - 1 : round(u) + 2] = pc[j, 2] * (
+                    1.0 + depth_noise_rel * rng.normal()
+                )
+        depths[i] = dm
+    return SyntheticProblem(intr, T_true, T_noisy, {j: X[j] for j in range(n_points)}, obs, depths)
+
+
+def pose_error_m(T_est: Mapping[int, F64], T_true: Mapping[int, F64]) -> float:
+    """Mean camera-centre error (m) over the keyframes of ``T_true``."""
+    return float(np.mean([np.linalg.norm(T_est[k][:3, 3] - T_true[k][:3, 3]) for k in T_true]))

@@ -1,0 +1,69 @@
+"""The 3D studio view serves HTTP on 127.0.0.1 and holds the expected scene nodes."""
+
+from __future__ import annotations
+
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.viewer3d import StudioViewer, export_cloud_ply, export_mesh_ply, keyframe_cloud
+from engine.camera import Intrinsics
+from engine.dense.keyframes import KeyframeStore
+
+
+@pytest.fixture(scope="module")
+def store() -> KeyframeStore:
+    intr = Intrinsics(fx=60.0, fy=60.0, cx=39.5, cy=29.5, width=80, height=60)
+    st = KeyframeStore(intr)
+    rng = np.random.default_rng(0)
+    for i in range(3):
+        T = np.eye(4)
+        T[0, 3] = 0.2 * i
+        st.add(
+            T, rng.integers(0, 255, (60, 80), dtype=np.uint8), np.full((60, 80), 2.0, np.float32)
+        )
+    return st
+
+
+def test_viewer_serves_http_and_lists_nodes(store: KeyframeStore) -> None:
+    clicked: list[int] = []
+    v = StudioViewer(port=8093, on_keyframe_clicked=clicked.append)
+    try:
+        assert v.url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(v.url, timeout=10) as r:
+            assert r.status == 200
+            assert b"<html" in r.read(2000).lower()
+        v.set_store(store)
+        v.set_points(np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]]))
+        v.set_live_camera(np.eye(4))
+        T = np.eye(4)
+        T[2, 3] = 0.5
+        v.set_live_camera(T)  # updates the same node
+        assert v.node_names() == [
+            "/annotations",
+            "/cloud",
+            "/keyframes/kf_0000",
+            "/keyframes/kf_0001",
+            "/keyframes/kf_0002",
+            "/live_camera",
+        ]
+        np.testing.assert_allclose(v.nodes["/live_camera"].position, [0, 0, 0.5])
+        v.set_store(store.subset([0, 1]))  # a deleted keyframe disappears
+        assert "/keyframes/kf_0002" not in v.node_names()
+    finally:
+        v.stop()
+
+
+def test_cloud_and_exports(store: KeyframeStore, tmp_path: Path) -> None:
+    pts, cols = keyframe_cloud(store, stride=4)
+    assert pts.shape == (3 * 15 * 20, 3)
+    assert cols.shape == pts.shape
+    np.testing.assert_allclose(pts[:, 2], 2.0, atol=1e-9)
+    n = export_cloud_ply(store, tmp_path / "cloud.ply")
+    assert n == 3 * 30 * 40
+    assert (tmp_path / "cloud.ply").stat().st_size > 1000
+    tris = export_mesh_ply(store, tmp_path / "mesh.ply", voxel_m=0.05)
+    assert tris > 0
+    assert (tmp_path / "mesh.ply").exists()
