@@ -37,6 +37,10 @@ F32 = NDArray[np.float32]
 
 S_MIN_DEFAULT = 26  # 0.1 of the 8-bit range, Pérez et al. [6]
 V_MIN_DEFAULT = 51  # 0.2 of the 8-bit range
+SOFT_DEFAULT = True  # bilinear hue-saturation votes (``soft=True``). Measured: success AUC
+# neutral (mean over the colour sequences 0.537 soft vs 0.543 hard, 3 seeds: within noise), but
+# the loss scenario re-acquires in 3-4 frames instead of 11 (6 seeds): a presenter coming back
+# under slightly different light no longer flips hue bins
 
 
 def n_bins_total(n: int) -> int:
@@ -57,15 +61,25 @@ def bin_map(hsv_u8: NDArray[np.uint8], n: int, s_min: int = S_MIN_DEFAULT,
 
 
 def direct_histogram(hsv_u8: NDArray[np.uint8], xywh: tuple[int, int, int, int], n: int,
-                     s_min: int = S_MIN_DEFAULT, v_min: int = V_MIN_DEFAULT) -> F64:
-    """Un-normalised histogram (counts) of an integer rectangle, computed pixel by pixel."""
+                     s_min: int = S_MIN_DEFAULT, v_min: int = V_MIN_DEFAULT,
+                     soft: bool | None = None) -> F64:
+    """Un-normalised histogram (counts) of an integer rectangle, computed pixel by pixel.
+
+    ``soft`` (default ``SOFT_DEFAULT``): bilinear votes as in ``binned_integral``.
+    """
+    soft = SOFT_DEFAULT if soft is None else soft
     x, y, w, h = (round(v) for v in xywh)
     H, W = hsv_u8.shape[:2]
     x0, y0, x1, y1 = max(x, 0), max(y, 0), min(x + w, W), min(y + h, H)
     out = np.zeros(n_bins_total(n))
     if x1 <= x0 or y1 <= y0:
         return out
-    b = bin_map(hsv_u8[y0:y1, x0:x1], n, s_min, v_min)
+    roi = np.ascontiguousarray(hsv_u8[y0:y1, x0:x1])
+    if soft:
+        # the same voting as the integral histogram (one cell per pixel): its last node
+        return np.asarray(binned_integral(roi, n, 1, s_min, v_min, soft=True)[-1, -1],
+                          dtype=np.float64)
+    b = bin_map(roi, n, s_min, v_min)
     np.add.at(out, b.ravel(), 1.0)
     return out
 
@@ -125,7 +139,7 @@ def motion_likelihood(e_nonmotion: F64 | float, lambda_mot: float) -> F64:
 
 
 @njit(cache=True)
-def _binned_integral(hsv, n, cell, s_min, v_min, inc):  # type: ignore[no-untyped-def]
+def _binned_integral(hsv, n, cell, s_min, v_min, inc, soft):  # type: ignore[no-untyped-def]
     H, W = hsv.shape[0], hsv.shape[1]
     hc = (H + cell - 1) // cell
     wc = (W + cell - 1) // cell
@@ -134,17 +148,44 @@ def _binned_integral(hsv, n, cell, s_min, v_min, inc):  # type: ignore[no-untype
     for y in range(H):
         cy = y // cell + 1
         for x in range(W):
+            cx = x // cell + 1
             h = np.int32(hsv[y, x, 0])
             s = np.int32(hsv[y, x, 1])
             v = np.int32(hsv[y, x, 2])
             if s >= s_min and v >= v_min:
+                if soft:
+                    # bilinear vote between the two nearest bin centres in hue (circular) and
+                    # saturation: a small hue shift moves weight instead of flipping a bin
+                    fh = (h + 0.5) * n / 180.0 - 0.5
+                    fs = (s + 0.5) * n / 256.0 - 0.5
+                    h0 = math.floor(fh)
+                    ah = fh - h0
+                    h1 = (h0 + 1) % n
+                    h0 = h0 % n
+                    if fs <= 0.0:
+                        s0 = 0
+                        s1 = 0
+                        a_s = 0.0
+                    elif fs >= n - 1:
+                        s0 = n - 1
+                        s1 = n - 1
+                        a_s = 0.0
+                    else:
+                        s0 = int(fs)
+                        s1 = s0 + 1
+                        a_s = fs - s0
+                    out[cy, cx, h0 * n + s0] += inc * (1.0 - ah) * (1.0 - a_s)
+                    out[cy, cx, h0 * n + s1] += inc * (1.0 - ah) * a_s
+                    out[cy, cx, h1 * n + s0] += inc * ah * (1.0 - a_s)
+                    out[cy, cx, h1 * n + s1] += inc * ah * a_s
+                    continue
                 hb = h * n // 180
                 if hb > n - 1:
                     hb = n - 1
                 b = hb * n + s * n // 256
             else:
                 b = n * n + v * n // 256
-            out[cy, x // cell + 1, b] += inc
+            out[cy, cx, b] += inc
     for cy in range(1, hc + 1):
         for cx in range(1, wc + 1):
             for b in range(nb):
@@ -154,14 +195,17 @@ def _binned_integral(hsv, n, cell, s_min, v_min, inc):  # type: ignore[no-untype
 
 def binned_integral(hsv_roi: NDArray[np.uint8], n: int, cell: int = 1,
                     s_min: int = S_MIN_DEFAULT, v_min: int = V_MIN_DEFAULT,
-                    pixel_weight: float = 1.0) -> F32:
+                    pixel_weight: float = 1.0, soft: bool | None = None) -> F32:
     """Integral histogram (rows+1, cols+1, N*N+N) of an HSV region on a ``cell`` px grid.
 
     ``pixel_weight``: what one pixel counts for; 4 when the region was subsampled by 2 in
-    each direction, so that counts stay in full-resolution pixels.
+    each direction, so that counts stay in full-resolution pixels. ``soft``: each chromatic
+    pixel votes bilinearly for the two nearest hue (circular) and saturation bin centres
+    instead of one bin (default ``SOFT_DEFAULT``).
     """
     return _binned_integral(np.ascontiguousarray(hsv_roi), n, max(int(cell), 1), s_min, v_min,
-                            np.float32(pixel_weight))
+                            np.float32(pixel_weight),
+                            bool(SOFT_DEFAULT if soft is None else soft))
 
 
 @njit(cache=True)

@@ -31,6 +31,14 @@ class PresenterParams:
                              "height (eq. 1)", 0.0, 1.0, 0.005)  # type: ignore[assignment]
     sigma_min_px: float = _f(3.0, "lower bound of the x/y prediction noise std (px): small "
                              "targets still move whole pixels", 0.0, 100.0, 0.5)  # type: ignore[assignment]
+    velocity_gain: float = _f(0.5, "drift of the prediction: this fraction of the estimate's "
+                              "smoothed velocity is added to eq. (1)'s random walk (0 = the "
+                              "paper's pure random walk)", 0.0, 1.0, 0.05)  # type: ignore[assignment]
+    fit_width: bool = _f(True, "output box width (and centre) from the foreground/background "
+                         "colour extent around the estimate, for a full-body model (first "
+                         "box at least 2x as tall as wide: a stride or arm swing widens it; a "
+                         "head or face box keeps its aspect); off = always the model's fixed "
+                         "aspect ratio")  # type: ignore[assignment]
     grey_world: bool = _f(True, "grey-world colour balance of each frame before the "
                           "histograms (for auto-white-balancing cameras)")  # type: ignore[assignment]
     sigma_h_frac: float = _f(0.0, "prediction noise std of the scale h per frame, fraction of "
@@ -51,6 +59,25 @@ class PresenterParams:
     pref_adapt_ratio: float = _f(0.6, "Pref adapts only while P >= this fraction of Pref",
                                  0.0, 1.0, 0.05)  # type: ignore[assignment]
     pref_adapt_rate: float = _f(0.02, "Pref adaptation rate per frame (slow)", 0.0, 1.0, 0.005)  # type: ignore[assignment]
+    pref_init_frames: int = _f(10, "Pref starts as the median P(z_col|s) of this many frames "
+                               "after the first (the first frame matches its own model "
+                               "exactly, an optimistic reference); no loss test meanwhile",
+                               0, 100, 1)  # type: ignore[assignment]
+    loss_frames: int = _f(2, "consecutive frames below Pmin before LOST is declared",
+                          1, 5, 1)  # type: ignore[assignment]
+    model_update_rate: float = _f(0.05, "slow model update: per frame, the adapted patch "
+                                  "histograms move this fraction towards the ones at the "
+                                  "estimate (0 = the paper's fixed model)", 0.0, 1.0, 0.01)  # type: ignore[assignment]
+    model_update_ratio: float = _f(0.3, "update the model only while P(z_col|s) >= this "
+                                   "fraction of Pref (guard against drift)", 0.0, 1.0, 0.05)  # type: ignore[assignment]
+    model_anchor: float = _f(0.2, "weight of the first frame's histograms in the reference "
+                             "(the rest is the adapted model): the anchor limits drift",
+                             0.0, 1.0, 0.05)  # type: ignore[assignment]
+    bg_weighting: float = _f(0.25, "background-weighted reference (corrected BWH, Ning et al. "
+                             "2012, after Comaniciu et al. 2003): reference bins are scaled "
+                             "by min(1, o*/o_b)^this, o = colours of a ring around the first "
+                             "box (3x its area; measured on the first frame, so turning it on "
+                             "takes effect after a reset); 0 = off", 0.0, 1.0, 0.05)  # type: ignore[assignment]
     reinit_particles: int = _f(600, "particles of the diffuse prior while re-acquiring",
                                10, 20000, 50)  # type: ignore[assignment]
     reacquire_frames: int = _f(2, "consecutive frames above Pmin before the lock is declared",

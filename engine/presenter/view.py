@@ -1,17 +1,30 @@
 """One camera view's presenter tracker: particle filter + likelihoods + loss handling + jitter.
 
 Per frame (VR-TV paper, Fig. 5):
-1. pre-processing: HSV of the region the particles cover (integral histogram) and the
-   motion history image of the whole frame;
-2. systematic resampling over the previous weights and prediction, eq. (1);
+1. pre-processing: HSV of the region the particles cover (integral histogram, bilinear
+   hue-saturation votes) and the motion history image of the whole frame;
+2. systematic resampling over the previous weights and prediction, eq. (1), plus a damped
+   constant-velocity drift (``velocity_gain``; 0 = the paper's pure random walk);
 3. colour likelihood eq. (2)-(3), motion likelihood eq. (4), fusion eq. (5);
 4. weighted mean eq. (6), then the jitter low-pass;
-5. loss test (Sec. III-C.7): LOST when P(z_col | s_t) < Pmin = p % of Pref. Pref starts at
-   the best particle likelihood of the first frame and follows P slowly while P >= 60 % of
-   it. While LOST the output holds the last good position and the filter searches with a
-   diffuse prior of ``reinit_particles`` particles (half fresh every frame, half resampled
-   from the last search) until P at the estimate is back above Pmin for
+5. loss test (Sec. III-C.7): LOST when P(z_col | s_t) < Pmin = p % of Pref for
+   ``loss_frames`` frames. Pref is the median P of the first ``pref_init_frames`` tracked
+   frames (the first frame matches its own model exactly, so its P is an optimistic
+   reference that every later frame falls far short of) and then follows P slowly while
+   P >= 60 % of it. While LOST the output holds the last good position and the filter searches
+   with a diffuse prior of ``reinit_particles`` particles (half fresh every frame, half
+   resampled from the last search) until P at the estimate is back above Pmin for
    ``reacquire_frames`` frames.
+
+Beyond the paper (each switchable, measured in ``studiotrack bench presenter``):
+- slow model update: while P >= ``model_update_ratio`` x Pref the adapted patch histograms
+  move ``model_update_rate`` towards the estimate's; the reference is ``model_anchor`` x the
+  first frame's + the rest adapted, so it can never drift wholly away (cf. the paper's [5]);
+- background-weighted reference (corrected BWH): reference bins are scaled down by how
+  common their colour is in a ring around the first box (``bg_weighting``);
+- output width: for a full-body model (first box >= 2x as tall as wide) the output box's width
+  and centre come from ``engine.presenter.extent`` (stride / arm swing); the state stays
+  (x, y, h) with the first frame's aspect ratio.
 """
 
 from __future__ import annotations
@@ -26,6 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.presenter import filter as pf
+from engine.presenter.extent import measure_extent
 from engine.presenter.jitter import JitterFilter
 from engine.presenter.likelihood import (
     MotionHistory,
@@ -33,9 +47,11 @@ from engine.presenter.likelihood import (
     binned_integral,
     colour_likelihood,
     colour_residuals,
+    direct_histogram,
     grey_world_gains,
     motion_likelihood,
     motion_residuals,
+    rect_histogram,
 )
 from engine.presenter.model import PatchModel
 from engine.presenter.params import PresenterParams
@@ -45,6 +61,10 @@ F64 = NDArray[np.float64]
 TRACKING = "TRACKING"
 MOTION_STEP = 2  # subsampling of the motion history image
 LOST = "LOST"
+#: width / height at or below which a model is a full-body one whose output width is fitted
+#: (``PresenterParams.fit_width``): a standing presenter is ~3-4x as tall as wide, a head or
+#: face box ~1-1.5x; the rule looks at the first frame's box only
+FULL_BODY_ASPECT = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,6 +82,8 @@ class ViewOutput:
     weights: F64
     lost_frames: int
     timings_ms: dict[str, float] = field(default_factory=dict)
+    #: output box (centre x, width) when ``fit_width`` measured one; None = fixed aspect
+    box_cx_w: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         self.particles_xyh.flags.writeable = False
@@ -90,7 +112,16 @@ class ViewTracker:
         self.last_filtered_xyh = self._init_xyh.copy()
         self.lost_frames = 0
         self._above = 0
+        self._below = 0
+        self._n_frames = 0
+        self._vel_xy = np.zeros(2)
+        self._box_dx_w: tuple[float, float] | None = None  # smoothed centre offset, width
+        self._prev_mean: F64 | None = None
+        self._p_boot: list[float] = []
         self._sqrt_ref = np.ascontiguousarray(model.sqrt_hists)
+        self._hist0 = np.asarray(model.hists, dtype=np.float64).copy()
+        self._hist_adapt = self._hist0.copy()
+        self._bin_w: F64 | None = None  # background weights of the reference bins (BWH)
         self._rel = np.ascontiguousarray(model.rel_boxes)
         self._gains: F64 | None = None
 
@@ -106,6 +137,7 @@ class ViewTracker:
         self.motion.duration_frames = params.mhi_duration_frames
         self.motion.threshold = params.motion_threshold
         self.jitter.configure(params.jitter_cutoff_hz, self._fps())
+        self._set_reference()  # model_anchor / bg_weighting changes
         if params.seed != old.seed:
             self.rng = np.random.default_rng(params.seed)
 
@@ -156,6 +188,62 @@ class ViewTracker:
         return colour_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
                                 self._sqrt_ref)
 
+    def _patch_hists(self, ctx: Any, xyh: F64) -> F64 | None:
+        """Normalised patch histograms at one state from the frame's integral (None if a
+        patch is not wholly inside the image)."""
+        integral, cell, (ox, oy, _rw, _rh), (W, H) = ctx
+        boxes = self.model.boxes_at(float(xyh[0]), float(xyh[1]), float(xyh[2]))[1:]
+        out = np.empty((len(boxes), integral.shape[2]))
+        for k, (x, y, w, h) in enumerate(boxes):
+            if x < 0 or y < 0 or x + w > W or y + h > H:
+                return None
+            c = np.maximum(rect_histogram(integral, cell, (x - ox, y - oy, w, h)), 0.0)
+            total = c.sum()
+            if total <= 0:
+                return None
+            out[k] = c / total
+        return out
+
+    def _update_model(self, ctx: Any, mean: F64) -> None:
+        """Slow blend of the reference histograms towards the estimate's, anchored to the
+        first frame's (beyond the paper, which keeps the model fixed; cf. its ref. [5])."""
+        p = self.params
+        if p.model_update_rate <= 0 or ctx is None:
+            return
+        q = self._patch_hists(ctx, mean)
+        if q is None:
+            return
+        self._hist_adapt += p.model_update_rate * (q - self._hist_adapt)
+        self._set_reference()
+
+    def _set_reference(self) -> None:
+        """sqrt of the reference histograms: anchored blend, then background weights."""
+        p = self.params
+        ref = p.model_anchor * self._hist0 + (1.0 - p.model_anchor) * self._hist_adapt
+        if self._bin_w is not None and p.bg_weighting > 0:
+            ref = ref * self._bin_w ** p.bg_weighting
+            ref /= np.maximum(ref.sum(axis=1, keepdims=True), 1e-12)
+        self._sqrt_ref = np.ascontiguousarray(np.sqrt(ref))
+
+    def _background_weights(self, bgr: NDArray[np.uint8]) -> None:
+        """v_b = min(1, o*/o_b) from the ring around the first box (corrected BWH: only the
+        reference is weighted; o* = the smallest non-zero ring bin above 1 % of the peak)."""
+        x, y, h = (float(v) for v in self._init_xyh)
+        w = h * self.model.aspect
+        k = 3.0 ** 0.5  # the enlarged box has 3x the area
+        img = cv2.cvtColor(apply_gains(bgr, self._gains), cv2.COLOR_BGR2HSV)
+        inner = (round(x - w / 2), round(y - h / 2), round(w), round(h))
+        outer = (round(x - k * w / 2), round(y - k * h / 2), round(k * w), round(k * h))
+        n = self.model.n_bins
+        ring = np.maximum(direct_histogram(img, outer, n) - direct_histogram(img, inner, n), 0)
+        if ring.sum() <= 0:
+            return
+        o = ring / ring.sum()
+        nz = o[o > 0.01 * o.max()]
+        o_star = float(nz.min()) if len(nz) else float(o.max())
+        self._bin_w = np.minimum(1.0, o_star / np.maximum(o, 1e-12))
+        self._set_reference()
+
     def step(self, bgr: NDArray[np.uint8]) -> ViewOutput:
         p = self.params
         t_start = time.perf_counter()
@@ -168,6 +256,8 @@ class ViewTracker:
             timings["motion_ms"] = (time.perf_counter() - t0) * 1000.0
         self._gains = grey_world_gains(bgr) if self.model.grey_world else None
         first = len(self.particles) == 0
+        if first and p.bg_weighting > 0:
+            self._background_weights(bgr)
         h_ref = float(self.last_good_xyh[2])
         t0 = time.perf_counter()
         if first:
@@ -178,6 +268,8 @@ class ViewTracker:
             idx = pf.systematic_resample(self.weights, p.n_particles, self.rng)
             self.particles = pf.predict(self.particles[idx], self.sigma_xyh(h_ref), self.rng,
                                         self.h_limits)
+            # constant-velocity drift on top of eq. (1)'s random walk
+            self.particles[:, :2] += p.velocity_gain * self._vel_xy
         else:
             # search: half a fresh diffuse prior, half resampled from the last search
             n = p.reinit_particles
@@ -204,26 +296,36 @@ class ViewTracker:
         b2_mean = (self._colour(ctx, mean[None, :]) if ctx is not None
                    else self._evaluate(bgr, mean[None, :], motion=False)[0])
         p_col = float(colour_likelihood(b2_mean[0], p.lambda_col))
+        self._n_frames += 1
         if first:
             self.p_ref = max(float(np.max(colour_likelihood(b2, p.lambda_col))), p_col)
+        booting = 1 < self._n_frames <= 1 + p.pref_init_frames
+        if booting:
+            # Pref from the first tracked frames, not the self-match of the first one
+            self._p_boot.append(p_col)
+            self.p_ref = float(np.median(self._p_boot))
         assert self.p_ref is not None
         p_min = p.loss_percent / 100.0 * self.p_ref
 
         if self.state == TRACKING:
-            if p_col < p_min:
+            self._below = self._below + 1 if (p_col < p_min and not booting) else 0
+            if self._below >= p.loss_frames:
                 self.state = LOST
-                self.lost_frames = 1
+                self.lost_frames = self._below
                 self._above = 0
-            else:
+            elif self._below == 0:
                 self.last_good_xyh = mean.copy()
-                if p_col >= p.pref_adapt_ratio * self.p_ref:  # slow Pref adaptation
+                if not booting and p_col >= p.pref_adapt_ratio * self.p_ref:  # slow Pref adapt
                     self.p_ref += p.pref_adapt_rate * (p_col - self.p_ref)
+                if p_col >= p.model_update_ratio * self.p_ref:
+                    self._update_model(ctx, mean)
         else:
             self.lost_frames += 1
             self._above = self._above + 1 if p_col >= p_min else 0
             if self._above >= p.reacquire_frames:
                 self.state = TRACKING
                 self.lost_frames = 0
+                self._below = 0
                 self.last_good_xyh = mean.copy()
                 self.jitter.reset(mean)
                 # back to the normal particle count around the re-acquired state
@@ -231,6 +333,13 @@ class ViewTracker:
                 self.particles = self.particles[idx]
                 self.weights = np.full(p.n_particles, 1.0 / p.n_particles)
 
+        if self.state == TRACKING and self._below == 0:
+            if self._prev_mean is not None:
+                self._vel_xy = 0.5 * self._vel_xy + 0.5 * (mean[:2] - self._prev_mean[:2])
+            self._prev_mean = mean.copy()
+        else:
+            self._vel_xy[:] = 0.0
+            self._prev_mean = None
         if self.state == TRACKING:
             self.jitter.configure(p.jitter_cutoff_hz, self._fps())
             filtered = self.jitter(mean)
@@ -239,6 +348,12 @@ class ViewTracker:
         else:
             raw = self.last_good_xyh
             filtered = self.last_filtered_xyh  # hold the last output while searching
+        box_cx_w = None
+        if p.fit_width and self.model.aspect <= FULL_BODY_ASPECT:
+            if self.state == TRACKING:
+                self._fit_width(bgr, mean)
+            if self._box_dx_w is not None:
+                box_cx_w = (float(raw[0]) + self._box_dx_w[0], self._box_dx_w[1])
         timings["total_ms"] = (time.perf_counter() - t_start) * 1000.0
         return ViewOutput(
             state=self.state,
@@ -252,4 +367,22 @@ class ViewTracker:
             weights=self.weights.copy(),
             lost_frames=self.lost_frames,
             timings_ms=timings,
+            box_cx_w=box_cx_w,
         )
+
+    def _fit_width(self, bgr: NDArray[np.uint8], mean: F64) -> None:
+        """Smoothed output-box width and centre offset from ``extent.measure_extent``."""
+        ref = np.square(self._sqrt_ref)
+        rel = self._rel
+        area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
+        fg = (area / max(float(area.sum()), 1e-12)) @ ref
+        got = measure_extent(bgr, self._gains, mean, self.model.aspect, fg, self.model.n_bins)
+        if got is None:
+            return
+        dx, w = got[0] - float(mean[0]), got[1]
+        if self._box_dx_w is None:
+            self._box_dx_w = (dx, w)
+        else:
+            a = 0.5  # temporal smoothing of the measured extent
+            self._box_dx_w = (self._box_dx_w[0] + a * (dx - self._box_dx_w[0]),
+                              self._box_dx_w[1] + a * (w - self._box_dx_w[1]))

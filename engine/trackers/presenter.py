@@ -3,8 +3,10 @@
 Initialisation: from a saved model (``model_path``: a folder with model.json + reference.png)
 or, by default, from the first frame's ground-truth box (``Frame.gt_box_xywh``) split into
 ``auto_patches`` horizontal patches. ``box_xywh`` is the particle mean of eq. (6) (what the
-OTB metrics score); the jitter-filtered position drives the cross-hair and the control
-message (``extras['filtered_xyh']``). While LOST the box holds the last good estimate.
+OTB metrics score) - for a full-body model with the width and centre x measured by
+``engine.presenter.extent`` (``fit_width``); the jitter-filtered position drives the
+cross-hair and the control message (``extras['filtered_xyh']``). While LOST the box holds
+the last good estimate.
 
 Optional second view: a frame whose ``extras`` carries ``overhead_bgr`` and ``overhead_box_xywh``
 (first frame) is tracked by a second filter; with a floor calibration
@@ -177,9 +179,10 @@ class PresenterTracker:
         }
         if over_out is not None:
             extras["overhead_xyh"] = over_out.filtered_xyh
+        bx, bw = out.box_cx_w if out.box_cx_w is not None else (x, w)
         return TrackResult(
             state=state,
-            box_xywh=(x - w / 2.0, y - h / 2.0, w, h),
+            box_xywh=(bx - bw / 2.0, y - h / 2.0, bw, h),
             residual=float(-np.log(max(out.p_col, 1e-300))),
             timings_ms=out.timings_ms,
             overlay=overlay,

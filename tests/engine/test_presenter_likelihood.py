@@ -83,15 +83,30 @@ def test_colour_residuals_equal_sum_of_squared_bhattacharyya() -> None:
     ref = np.stack([rng.random(110), rng.random(110)])
     ref /= ref.sum(axis=1, keepdims=True)
     states = np.array([[40.0, 30.0, 20.0], [25.0, 22.0, 16.0]])  # (x, y, h), aspect 1
-    got = colour_residuals(binned_integral(hsv, 10, 1), 1, (0, 0, 80, 60), (80, 60), states,
-                           rel, 1.0, np.sqrt(ref))
+    got = colour_residuals(binned_integral(hsv, 10, 1, soft=False), 1, (0, 0, 80, 60),
+                           (80, 60), states, rel, 1.0, np.sqrt(ref))
     for k, (x, y, h) in enumerate(states):
         want = 0.0
         for p in range(2):
             box = (int(x - h / 2 + rel[p, 0] * h), int(y - h / 2 + rel[p, 1] * h),
                    int((rel[p, 2] - rel[p, 0]) * h), int((rel[p, 3] - rel[p, 1]) * h))
-            want += bhattacharyya(direct_histogram(hsv, box, 10), ref[p]) ** 2
+            want += bhattacharyya(direct_histogram(hsv, box, 10, soft=False), ref[p]) ** 2
         assert got[k] == pytest.approx(want, abs=1e-6)
+
+
+def test_soft_votes_keep_counts_and_soften_a_hue_shift() -> None:
+    hsv = np.zeros((10, 10, 3), np.uint8)
+    hsv[..., 0], hsv[..., 1], hsv[..., 2] = 17, 200, 200  # hue just below a bin edge (18)
+    shifted = hsv.copy()
+    shifted[..., 0] = 19  # just above it
+    for soft in (False, True):
+        assert direct_histogram(hsv, (0, 0, 10, 10), 10, soft=soft).sum() == pytest.approx(100)
+    hard = bhattacharyya(direct_histogram(hsv, (0, 0, 10, 10), 10, soft=False),
+                         direct_histogram(shifted, (0, 0, 10, 10), 10, soft=False))
+    soft_b = bhattacharyya(direct_histogram(hsv, (0, 0, 10, 10), 10, soft=True),
+                           direct_histogram(shifted, (0, 0, 10, 10), 10, soft=True))
+    assert hard == pytest.approx(1.0)
+    assert soft_b < 0.2
 
 
 def test_motion_history_of_a_moving_square() -> None:
