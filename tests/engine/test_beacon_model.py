@@ -13,7 +13,9 @@ from hypothesis import strategies as st
 from engine.beacons.model import (
     BeaconFilterParams,
     BeaconSlamFilter,
+    liu_west_roughen,
     map_adjustment,
+    marginal_range_sigma,
     normalise_log_weights,
     predicted_ranges,
     range_log_likelihood,
@@ -162,7 +164,8 @@ def test_missing_readings_and_outliers_are_handled() -> None:
 
 
 def test_gross_outlier_is_rejected_and_not_adjusted_into_the_map() -> None:
-    f = BeaconSlamFilter(list(PAPER_LAYOUT), BeaconFilterParams(known_beacons=False),
+    # roughening off: it moves every beacon after resampling, which would hide what MA did
+    f = BeaconSlamFilter(list(PAPER_LAYOUT), BeaconFilterParams(roughen_h=0.0),
                          layout_xy=PAPER_LAYOUT, seed=0)
     truth = np.array(list(PAPER_LAYOUT.values()))
     for s in paper_camera_path(10)[:10]:
@@ -212,3 +215,55 @@ def test_steps_without_any_reading_do_not_start_the_filter() -> None:
     assert est.step == -1
     assert f.t == 0
     assert f.step([5.0, 6.0]).step == 0  # the first measurement initialises (sec. III.B)
+
+
+# ---------------------------------------------------------------- against particle collapse
+def test_marginal_sigma_adds_map_spread_along_the_line_of_sight_only() -> None:
+    """Eq. (10) integrates over the beacon: spread along the line of sight widens the
+    likelihood, spread across it (which does not change the range) does not."""
+    m = 400
+    rng = np.random.default_rng(0)
+    cam = np.zeros((m, 2))
+    w = np.full(m, 1.0 / m)
+    point = np.tile([[10.0, 0.0]], (m, 1, 1))
+    np.testing.assert_allclose(marginal_range_sigma(cam, point, w, 0.3), 0.3)
+    along = point + np.stack([rng.normal(0.0, 0.4, m), np.zeros(m)], axis=1)[:, None, :]
+    across = point + np.stack([np.zeros(m), rng.normal(0.0, 0.4, m)], axis=1)[:, None, :]
+    s_along = marginal_range_sigma(cam, along, w, 0.3)
+    s_across = marginal_range_sigma(cam, across, w, 0.3)
+    assert float(np.median(s_along)) == pytest.approx(0.5, abs=0.03)  # sqrt(0.3^2 + 0.4^2)
+    assert float(np.median(s_across)) < 0.32
+
+
+def test_roughening_keeps_the_map_cloud_and_splits_duplicates() -> None:
+    rng = np.random.default_rng(1)
+    m = 4000
+    base = rng.normal([[5.0, -2.0], [0.0, 12.0]], [[0.5, 0.2], [1.0, 1.0]], (40, 2, 2))
+    x = base[rng.integers(0, 40, m)]  # after resampling: 40 distinct maps, many copies each
+    w = np.full(m, 1.0 / m)
+    out = liu_west_roughen(x, w, 0.3, rng)
+    assert len(np.unique(out[:, 0, 0])) == m
+    mean0, cov0 = weighted_mean_cov(x, w)
+    mean1, cov1 = weighted_mean_cov(out, w)
+    np.testing.assert_allclose(mean1, mean0, atol=0.05)
+    np.testing.assert_allclose(np.diagonal(cov1, axis1=1, axis2=2),
+                               np.diagonal(cov0, axis1=1, axis2=2), rtol=0.1)
+
+
+def test_map_converges_over_the_run() -> None:
+    """The beacon map gets better as the camera moves (paper, sec. IV: errors "get smaller
+    and converge"); without roughening and the eq. (10) spread the map collapses early."""
+
+    def beacon_err(params: BeaconFilterParams, seed: int) -> tuple[float, float]:
+        sim = simulate(PAPER_LAYOUT, SimConfig(seed=seed))
+        f = BeaconSlamFilter(sim.ids, params, layout_xy=PAPER_LAYOUT, seed=100 + seed)
+        errs = []
+        for t in range(len(sim.path_xy)):
+            est = f.step(sim.ranges_m[t])
+            errs.append(float(np.mean(np.linalg.norm(est.beacons_xy - sim.beacons_xy, axis=1))))
+        return errs[30], errs[-1]
+
+    new = np.array([beacon_err(BeaconFilterParams(), s) for s in range(12)])
+    t30, final = np.mean(new, axis=0)
+    assert final < 0.85 * t30  # the old filter (collapsed map) got worse: 1.7 m -> 2.0 m
+    assert final < 1.0
