@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from app.commands._common import emit_json, log
+from app.commands._outputs_cli import add_output_arguments, sending
 from engine.errors import TrackerError
 
 if TYPE_CHECKING:
@@ -52,6 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--list-params", action="store_true",
                    help="print the chosen tracker's parameters with defaults and exit")
     _add_tracker_arguments(p)
+    add_output_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -118,9 +120,14 @@ def run(args: argparse.Namespace) -> int:
             log(f"  frame {rec.seq + 1}/{total or '?'}  {rec.result.state.value}"
                 f"  {rec.process_ms:.1f} ms")
 
-    with source:
+    with source, sending(args) as send:  # --freed / --opentrackio: one packet per frame
+
+        def on_record(rec: FrameRecord) -> None:
+            progress(rec)
+            send(rec)
+
         tr_run = run_tracker(source, tracker, output=spec.output, max_frames=args.max_frames,
-                             on_record=progress)
+                             on_record=on_record)
     if len(tr_run) == 0:
         raise TrackerError(f"{args.source}: the source yielded no frames")
     _write_output(out_path, tr_run)

@@ -1,0 +1,171 @@
+"""Command-line options for pose outputs, shared by ``track``, ``record`` and benches.
+
+``add_output_arguments(parser)`` adds ``--freed HOST:PORT``, ``--opentrackio HOST:PORT[,cbor]``
+and their settings; ``outputs_from_args(args)`` returns a started
+:class:`engine.outputs.sender.OutputSet` or None when no output was asked for.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from app.commands._common import log
+from engine.outputs import OutputError
+
+
+def parse_target(text: str, protocol: str, bind: str | None) -> Any:
+    """``HOST:PORT[,json|cbor]``; for OpenTrackIO also ``multicast[:PORT][,cbor]``."""
+    from engine.outputs import opentrackio as ot
+    from engine.outputs.sender import TargetSpec
+
+    addr, _, enc = text.partition(",")
+    enc = enc.strip().lower() or "json"
+    if protocol == "freed" and enc != "json":
+        raise OutputError(f"--freed {text!r}: FreeD takes HOST:PORT only")
+    host, sep, port_s = addr.strip().rpartition(":")
+    if not sep:
+        host, port_s = addr.strip(), ""
+    if protocol == "opentrackio" and host in ("multicast", "mc", ""):
+        host = "multicast"
+    if not port_s:
+        if protocol == "opentrackio":
+            port_s = str(ot.DEFAULT_PORT)
+        else:
+            raise OutputError(f"--freed {text!r}: expected HOST:PORT")
+    try:
+        port = int(port_s)
+    except ValueError:
+        raise OutputError(f"{protocol} target {text!r}: port {port_s!r} is not a number") from None
+    return TargetSpec(protocol, host, port, enc, bind)
+
+
+def add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("pose outputs (UDP; bind to 127.0.0.1 unless --output-bind)")
+    g.add_argument("--freed", action="append", default=[], metavar="HOST:PORT",
+                   help="send FreeD D1 packets to HOST:PORT (repeatable; broadcast allowed)")
+    g.add_argument("--freed-camera-id", type=int, default=1, metavar="N",
+                   help="FreeD camera id 0-255 (default 1)")
+    g.add_argument("--freed-lens", choices=("raw", "mm100", "mm64"), default="mm100",
+                   help="FreeD zoom/focus fields: raw values, or focal length/focus distance "
+                   "in mm x100 or x64 (default mm100)")
+    g.add_argument("--opentrackio", action="append", default=[], metavar="HOST:PORT[,cbor]",
+                   help="send OpenTrackIO samples (JSON, or CBOR with ',cbor'); "
+                   "'multicast' means 239.135.1.<source number>:55555")
+    g.add_argument("--opentrackio-source", type=int, default=1, metavar="N",
+                   help="OpenTrackIO sourceNumber 1-200 (default 1)")
+    g.add_argument("--output-bind", default=None, metavar="ADDR",
+                   help="local address the output sockets bind to (default 127.0.0.1 for "
+                   "loopback targets, 0.0.0.0 otherwise)")
+    g.add_argument("--output-delay-ms", default=None, metavar="MS|AXIS=MS,...",
+                   help="delay applied to the outputs: one value for all axes, or per axis, "
+                   "e.g. 'x=40,y=40,z=40,pan=33,tilt=33,roll=33' (negative = predict ahead)")
+    g.add_argument("--sensor-width-mm", type=float, default=9.59,
+                   help="sensor width used to express focal length in mm (default 9.59, 2/3\")")
+    g.add_argument("--studio-frame", type=Path, default=None, metavar="FILE.json",
+                   help="studio frame JSON ({\"T_world_studio\": 4x4}); default identity")
+
+
+def _delays(text: str | None) -> Any:
+    from engine.outputs.timing import AXES, DelayParams
+
+    if not text:
+        return DelayParams()
+    try:
+        if "=" not in text:
+            return DelayParams.uniform(float(text))
+        kw: dict[str, float] = {}
+        for item in text.split(","):
+            k, _, v = item.partition("=")
+            k = k.strip()
+            if k not in AXES:
+                raise OutputError(f"--output-delay-ms: unknown axis {k!r} (axes: {AXES})")
+            kw[f"{k}_ms"] = float(v)
+        return DelayParams(**kw)
+    except ValueError as exc:
+        raise OutputError(f"--output-delay-ms {text!r}: {exc}") from None
+
+
+def config_from_args(args: argparse.Namespace) -> Any:
+    """The :class:`OutputConfig` the options describe, or None when no target is given."""
+    from dataclasses import replace
+
+    from engine.outputs import opentrackio as ot
+    from engine.outputs.freed import ZoomFocusMapping
+    from engine.outputs.sender import FreeDSettings, OutputConfig
+    from engine.outputs.studio_frame import StudioFrame
+
+    freed = list(getattr(args, "freed", None) or [])
+    otio = list(getattr(args, "opentrackio", None) or [])
+    if not freed and not otio:
+        return None
+    bind = getattr(args, "output_bind", None)
+    src = int(getattr(args, "opentrackio_source", 1))
+    targets = [parse_target(t, "freed", bind) for t in freed]
+    for text in otio:
+        t = parse_target(text, "opentrackio", bind)
+        if t.host == "multicast":
+            t = replace(t, host=ot.default_multicast_group(src))
+        targets.append(t)
+    studio = StudioFrame()
+    sf_path = getattr(args, "studio_frame", None)
+    if sf_path is not None:
+        try:
+            studio = StudioFrame.from_json_dict(json.loads(Path(sf_path).read_text()))
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise OutputError(f"{sf_path}: cannot read studio frame ({exc})") from None
+    return OutputConfig(
+        targets=tuple(targets),
+        freed=FreeDSettings(
+            camera_id=int(getattr(args, "freed_camera_id", 1)),
+            lens_mapping=ZoomFocusMapping(getattr(args, "freed_lens", "mm100")),
+        ),
+        opentrackio_source_number=src,
+        lens=ot.LensInfo(sensor_width_mm=float(getattr(args, "sensor_width_mm", 9.59))),
+        delays=_delays(getattr(args, "output_delay_ms", None)),
+        studio=studio,
+    )
+
+
+def outputs_from_args(args: argparse.Namespace) -> Any:
+    """A started OutputSet for the options, or None. Call ``.close()`` when done."""
+    from engine.outputs.sender import OutputSet
+
+    cfg = config_from_args(args)
+    if cfg is None:
+        return None
+    return OutputSet(cfg)
+
+
+def describe(outputs: Any) -> str:
+    """One line per target for the log: where it sends and what it is bound to."""
+    st = outputs.stats()
+    return "; ".join(f"{t.name} (bind {t.bind})" for t in st.targets)
+
+
+@contextlib.contextmanager
+def sending(args: argparse.Namespace) -> Iterator[Callable[[Any], None]]:
+    """``with sending(args) as send: ... send(record)`` - a no-op when no output was asked.
+
+    Opens the outputs the options describe, logs where they send (and the bind address),
+    and on exit flushes, logs the per-target packet counts and closes the sender.
+    """
+    outputs = outputs_from_args(args)
+    if outputs is None:
+        yield lambda _record: None
+        return
+    log(f"outputs: {describe(outputs)}")
+    try:
+        yield outputs.submit_record
+    finally:
+        outputs.flush(5.0)
+        st = outputs.stats()
+        log("outputs sent: " + "; ".join(
+            f"{t.name} {t.packets_sent} packets, {t.errors} errors"
+            + (f" (last: {t.last_error})" if t.last_error else "") for t in st.targets)
+            + f"; dropped {st.dropped}")
+        outputs.close()

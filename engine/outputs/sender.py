@@ -1,0 +1,498 @@
+"""The output sender: a thread that turns tracked poses into FreeD / OpenTrackIO datagrams.
+
+Tracking never waits for the network. :meth:`OutputSet.submit` appends to a bounded queue and
+returns at once; when the queue is full the *oldest* sample is dropped and counted (a render
+engine wants the newest pose, not a backlog). A socket error (unreachable host, no route,
+interface down) is counted on its target with the message kept as ``last_error``; it never
+raises into the tracking loop.
+
+Sockets bind to 127.0.0.1 unless the operator chooses another address (``bind_host``), or the
+target itself is not on the loopback network, in which case the socket binds to 0.0.0.0 so
+the kernel can route it; the bind address is part of each target's statistics.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import ipaddress
+import math
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from engine.camera import Intrinsics
+from engine.outputs import OutputError
+from engine.outputs import freed as fd
+from engine.outputs import opentrackio as otio
+from engine.outputs.studio_frame import StudioFrame, StudioPose
+from engine.outputs.timing import DelayCompensator, DelayParams
+
+PROTOCOLS = ("freed", "opentrackio")
+
+
+@dataclass(frozen=True, slots=True)
+class TargetSpec:
+    """One destination: protocol, host, port; ``encoding`` is 'json'/'cbor' (OpenTrackIO)."""
+
+    protocol: str
+    host: str = "127.0.0.1"
+    port: int = 40000
+    encoding: str = "json"
+    bind_host: str | None = None  # None: 127.0.0.1 for loopback targets, else 0.0.0.0
+
+    def __post_init__(self) -> None:
+        if self.protocol not in PROTOCOLS:
+            raise OutputError(f"output protocol {self.protocol!r} is not one of {PROTOCOLS}")
+        if not 1 <= int(self.port) <= 65535:
+            raise OutputError(f"output port {self.port} is outside 1..65535")
+        if not self.host:
+            raise OutputError("output host is empty")
+        if self.protocol == "opentrackio":
+            otio.encoding_byte(self.encoding)
+
+    @property
+    def name(self) -> str:
+        suffix = f",{self.encoding}" if self.protocol == "opentrackio" else ""
+        return f"{self.protocol}:{self.host}:{self.port}{suffix}"
+
+    @property
+    def effective_bind(self) -> str:
+        if self.bind_host:
+            return self.bind_host
+        return "127.0.0.1" if _is_loopback(self.host) else "0.0.0.0"
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _is_multicast(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_multicast
+    except ValueError:
+        return False
+
+
+@dataclass(frozen=True, slots=True)
+class FreeDSettings:
+    """FreeD camera id and how the zoom/focus fields are filled."""
+
+    camera_id: int = field(default=1, metadata={"help": "FreeD camera id (0-255)", "min": 0,
+                                                "max": 255, "step": 1})
+    lens_mapping: fd.ZoomFocusMapping = fd.ZoomFocusMapping.MM_X100
+    zoom_raw: int = field(default=0, metadata={"help": "zoom field when mapping is raw"})
+    focus_raw: int = field(default=0, metadata={"help": "focus field when mapping is raw"})
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.camera_id <= 255:
+            raise OutputError(f"FreeD camera id {self.camera_id} is outside 0..255")
+        for n in ("zoom_raw", "focus_raw"):
+            if not 0 <= getattr(self, n) <= 0xFFFFFF:
+                raise OutputError(f"FreeD {n} {getattr(self, n)} is outside 0..16777215")
+
+
+@dataclass(frozen=True, slots=True)
+class OutputConfig:
+    """Everything the sender needs; swap a new one in with :meth:`OutputSet.set_config`."""
+
+    targets: tuple[TargetSpec, ...] = ()
+    freed: FreeDSettings = field(default_factory=FreeDSettings)
+    opentrackio_source_number: int = 1
+    lens: otio.LensInfo = field(default_factory=otio.LensInfo)
+    delays: DelayParams = field(default_factory=DelayParams)
+    studio: StudioFrame = field(default_factory=StudioFrame)
+    queue_size: int = 64
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.opentrackio_source_number <= 200:
+            raise OutputError(
+                f"OpenTrackIO source number {self.opentrackio_source_number} is outside 1..200"
+            )
+        if self.queue_size < 1:
+            raise OutputError(f"queue size {self.queue_size} must be >= 1")
+
+
+@dataclass(frozen=True, slots=True)
+class OutputSample:
+    """What the tracking loop hands to the sender for one frame."""
+
+    seq: int
+    timestamp_s: float
+    state: str
+    T_world_cam: np.ndarray | None
+    intrinsics: Intrinsics | None = None
+    wall_time_s: float = 0.0
+    submit_mono_s: float = 0.0  # set by OutputSet.submit (queue latency statistics)
+
+    def __post_init__(self) -> None:
+        if self.T_world_cam is not None and self.T_world_cam.flags.writeable:
+            self.T_world_cam.flags.writeable = False
+
+
+@dataclass(frozen=True, slots=True)
+class TargetStats:
+    name: str
+    protocol: str
+    address: str
+    bind: str
+    packets_sent: int
+    samples_sent: int
+    bytes_sent: int
+    errors: int
+    last_error: str
+    rate_hz: float
+
+
+@dataclass(frozen=True, slots=True)
+class SenderStats:
+    submitted: int
+    dropped: int
+    processed: int
+    skipped_no_pose: int
+    encode_errors: int
+    last_encode_error: str
+    targets: tuple[TargetStats, ...]
+    latency_p50_ms: float = float("nan")  # submit -> last datagram sent, last 600 samples
+    latency_p95_ms: float = float("nan")
+
+    @property
+    def packets_sent(self) -> int:
+        return sum(t.packets_sent for t in self.targets)
+
+    @property
+    def samples_sent(self) -> int:
+        return min((t.samples_sent for t in self.targets), default=0)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {
+            "submitted": self.submitted,
+            "dropped": self.dropped,
+            "processed": self.processed,
+            "skipped_no_pose": self.skipped_no_pose,
+            "encode_errors": self.encode_errors,
+            "last_encode_error": self.last_encode_error,
+            "latency_p50_ms": self.latency_p50_ms,
+            "latency_p95_ms": self.latency_p95_ms,
+            "targets": [
+                {k: getattr(t, k) for k in TargetStats.__slots__}
+                for t in self.targets
+            ],
+        }
+
+
+class _Target:
+    def __init__(self, spec: TargetSpec) -> None:
+        self.spec = spec
+        self.sock: socket.socket | None = None
+        self.packets = 0
+        self.samples = 0
+        self.bytes = 0
+        self.errors = 0
+        self.last_error = ""
+        self.otio_seq = 0
+        self.send_times: collections.deque[float] = collections.deque(maxlen=2048)
+
+    def open(self) -> socket.socket:
+        if self.sock is None:
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            try:
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+                bind = self.spec.effective_bind
+                s.bind((bind, 0))
+                if _is_multicast(self.spec.host):
+                    s.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
+                    s.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
+                    if bind != "0.0.0.0":
+                        s.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF,
+                                     socket.inet_aton(bind))
+            except OSError:
+                s.close()
+                raise
+            self.sock = s
+        return self.sock
+
+    def send(self, packets: Sequence[bytes]) -> None:
+        try:
+            sock = self.open()
+            for p in packets:
+                sock.sendto(p, (self.spec.host, self.spec.port))
+                self.packets += 1
+                self.bytes += len(p)
+            self.samples += 1
+            self.send_times.append(time.monotonic())
+        except OSError as exc:
+            self.errors += 1
+            self.last_error = f"{self.spec.name}: {exc.strerror or exc}"
+            # A fresh socket next time (e.g. after an interface came back).
+            self.close()
+
+    def close(self) -> None:
+        if self.sock is not None:
+            with contextlib.suppress(OSError):
+                self.sock.close()
+            self.sock = None
+
+    def stats(self, now: float) -> TargetStats:
+        times = list(self.send_times)
+        recent = [t for t in times if t > now - 1.0]
+        if len(recent) >= 2:
+            rate = (len(recent) - 1) / max(recent[-1] - recent[0], 1e-9)
+        else:
+            rate = float(len(recent))
+        return TargetStats(
+            name=self.spec.name,
+            protocol=self.spec.protocol,
+            address=f"{self.spec.host}:{self.spec.port}",
+            bind=self.spec.effective_bind,
+            packets_sent=self.packets,
+            samples_sent=self.samples,
+            bytes_sent=self.bytes,
+            errors=self.errors,
+            last_error=self.last_error,
+            rate_hz=rate,
+        )
+
+
+def freed_packet(pose: StudioPose, settings: FreeDSettings, intr: Intrinsics | None,
+                 lens: otio.LensInfo) -> bytes:
+    """D1 packet of a studio pose (conventions in :mod:`engine.outputs.studio_frame`)."""
+    focal_mm = intr.fx * lens.sensor_width_mm / intr.width if intr is not None else None
+    focus_mm = lens.focus_distance_m * 1000.0 if lens.focus_distance_m else None
+    return fd.encode_d1(
+        fd.FreeDPose(
+            camera_id=settings.camera_id,
+            pan_deg=pose.freed_pan_deg,
+            tilt_deg=pose.tilt_deg,
+            roll_deg=pose.roll_deg,
+            x_mm=pose.x_m * 1000.0,
+            y_mm=pose.y_m * 1000.0,
+            z_mm=pose.z_m * 1000.0,
+            zoom=fd.lens_field(settings.lens_mapping, settings.zoom_raw, focal_mm),
+            focus=fd.lens_field(settings.lens_mapping, settings.focus_raw, focus_mm),
+        )
+    )
+
+
+class OutputSet:
+    """Sender thread + targets. Use as a context manager or call :meth:`close`."""
+
+    def __init__(self, config: OutputConfig, *, start: bool = True) -> None:
+        self._config = config
+        self._targets = [_Target(t) for t in config.targets]
+        self._queue: collections.deque[OutputSample] = collections.deque()
+        self._cond = threading.Condition()
+        self._stop = False
+        self._busy = False
+        self.submitted = 0
+        self.dropped = 0
+        self.processed = 0
+        self.skipped_no_pose = 0
+        self.encode_errors = 0
+        self.last_encode_error = ""
+        self._comp = DelayCompensator(config.delays)
+        self._builder = otio.SampleBuilder(
+            source_number=config.opentrackio_source_number, lens=config.lens
+        )
+        self._last_t: float | None = None
+        self._rate_hz = 30.0
+        self._rate_measured = False
+        self._thread: threading.Thread | None = None
+        self._last_sample: OutputSample | None = None
+        self._latency_ms: collections.deque[float] = collections.deque(maxlen=600)
+        if start:
+            self.start()
+
+    # -- control -------------------------------------------------------------------------
+
+    @property
+    def config(self) -> OutputConfig:
+        return self._config
+
+    def start(self) -> None:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="output-sender", daemon=True)
+            self._thread.start()
+
+    def set_config(self, config: OutputConfig) -> None:
+        """Swap in new settings (targets are re-opened if they changed)."""
+        with self._cond:
+            if config.targets != self._config.targets:
+                for t in self._targets:
+                    t.close()
+                self._targets = [_Target(t) for t in config.targets]
+            self._comp.set_params(config.delays)
+            if (config.opentrackio_source_number != self._config.opentrackio_source_number
+                    or config.lens != self._config.lens):
+                self._builder = replace(self._builder,
+                                        source_number=config.opentrackio_source_number,
+                                        lens=config.lens)
+            self._config = config
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+        for t in self._targets:
+            t.close()
+
+    def __enter__(self) -> OutputSet:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- producer side (tracking thread) ----------------------------------------------------
+
+    def submit(self, sample: OutputSample) -> None:
+        """Queue one sample; never blocks; drops (and counts) the oldest when full."""
+        with self._cond:
+            if len(self._queue) >= self._config.queue_size:
+                self._queue.popleft()
+                self.dropped += 1
+            if not sample.submit_mono_s:
+                sample = replace(sample, submit_mono_s=time.monotonic())
+            self._queue.append(sample)
+            self.submitted += 1
+            self._last_sample = sample
+            self._cond.notify()
+
+    def mark_lost(self) -> None:
+        """Send the last pose again flagged LOST (the engine failed or stopped mid-show)."""
+        last = self._last_sample
+        if last is None:
+            return
+        period = 1.0 / self._rate_hz if self._rate_hz > 0 else 1.0 / 30.0
+        self.submit(replace(last, seq=last.seq + 1, timestamp_s=last.timestamp_s + period,
+                            state="LOST", wall_time_s=time.time(), submit_mono_s=0.0))
+
+    def submit_record(self, record: Any) -> None:
+        """Queue an :class:`engine.loop.FrameRecord` (pose trackers; others are skipped)."""
+        res = record.result
+        T = res.T_world_cam
+        self.submit(
+            OutputSample(
+                seq=int(record.seq),
+                timestamp_s=float(record.frame.timestamp_s),
+                state=res.state.value,
+                T_world_cam=None if T is None else np.array(T, dtype=np.float64),
+                intrinsics=record.frame.intrinsics,
+                wall_time_s=time.time(),
+            )
+        )
+
+    def flush(self, timeout_s: float = 5.0) -> bool:
+        """Wait until every queued sample has been processed (tests, end of a run)."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while self._queue or self._busy:
+                left = deadline - time.monotonic()
+                if left <= 0 or self._thread is None:
+                    return False
+                self._cond.wait(min(left, 0.05))
+        return True
+
+    def stats(self) -> SenderStats:
+        now = time.monotonic()
+        with self._cond:
+            lat = np.fromiter(self._latency_ms, dtype=np.float64)
+            p50, p95 = np.percentile(lat, [50, 95]) if lat.size else (np.nan, np.nan)
+            return SenderStats(
+                latency_p50_ms=float(p50),
+                latency_p95_ms=float(p95),
+                submitted=self.submitted,
+                dropped=self.dropped,
+                processed=self.processed,
+                skipped_no_pose=self.skipped_no_pose,
+                encode_errors=self.encode_errors,
+                last_encode_error=self.last_encode_error,
+                targets=tuple(t.stats(now) for t in self._targets),
+            )
+
+    # -- consumer side (sender thread) -----------------------------------------------------
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._stop:
+                    self._cond.wait()
+                if self._stop and not self._queue:
+                    return
+                sample = self._queue.popleft()
+                self._busy = True
+                cfg = self._config
+                targets = list(self._targets)
+            try:
+                self.process(sample, cfg, targets)
+            except Exception as exc:  # never let one bad sample kill the sender
+                self.encode_errors += 1
+                self.last_encode_error = f"{type(exc).__name__}: {exc}"
+            finally:
+                with self._cond:
+                    self.processed += 1
+                    self._busy = False
+                    self._cond.notify_all()
+
+    def process(self, sample: OutputSample, cfg: OutputConfig,
+                targets: Sequence[_Target]) -> None:
+        T = sample.T_world_cam
+        good = sample.state in ("TRACKING", "DEGRADED") and T is not None
+        pose = cfg.studio.studio_pose(T) if good and T is not None else None
+        if T is not None and not good and not self._comp.has_pose:
+            # Not good before any good frame (initialising): hold the tracker's own pose.
+            self._comp.update(sample.timestamp_s, cfg.studio.studio_pose(T), True)
+        timed = self._comp.update(sample.timestamp_s, pose, good)
+        if timed is None:
+            self.skipped_no_pose += 1
+            return
+        if self._last_t is not None and sample.timestamp_s > self._last_t:
+            inst = 1.0 / (sample.timestamp_s - self._last_t)
+            if math.isfinite(inst):
+                self._rate_hz = inst if not self._rate_measured else (
+                    0.9 * self._rate_hz + 0.1 * inst
+                )
+                self._rate_measured = True
+        self._last_t = sample.timestamp_s
+        freed_bytes: bytes | None = None
+        otio_payloads: dict[str, bytes] = {}
+        for t in targets:
+            try:
+                if t.spec.protocol == "freed":
+                    if freed_bytes is None:
+                        freed_bytes = freed_packet(timed.pose, cfg.freed, sample.intrinsics,
+                                                   cfg.lens)
+                    t.send([freed_bytes])
+                else:
+                    enc = t.spec.encoding
+                    if enc not in otio_payloads:
+                        sample_dict = self._builder.build(
+                            otio.SampleInputs(
+                                pose=timed.pose,
+                                status=sample.state,
+                                timestamp_s=sample.wall_time_s or time.time(),
+                                sequence_number=sample.seq,
+                                sample_rate_hz=self._rate_hz,
+                                intrinsics=sample.intrinsics,
+                            )
+                        )
+                        otio_payloads[enc] = otio.encode_payload(sample_dict, enc)
+                    t.send(otio.build_packets(otio_payloads[enc], t.otio_seq, enc))
+                    t.otio_seq = (t.otio_seq + 1) & 0xFFFF
+            except OutputError as exc:
+                self.encode_errors += 1
+                self.last_encode_error = str(exc)
+        if sample.submit_mono_s:
+            self._latency_ms.append((time.monotonic() - sample.submit_mono_s) * 1000.0)
