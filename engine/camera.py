@@ -163,6 +163,8 @@ def load_camera_json(path: str | Path) -> Intrinsics:
         raise CalibrationError(f"{path}: cannot read ({exc})") from None
     except json.JSONDecodeError as exc:
         raise CalibrationError(f"{path}: malformed JSON at line {exc.lineno} ({exc.msg})") from None
+    except RecursionError:
+        raise CalibrationError(f"{path}: JSON nested too deeply") from None
     if not isinstance(raw, dict):
         raise CalibrationError(f"{path}: expected a JSON object, got {type(raw).__name__}")
     missing = [k for k in ("fx", "fy", "cx", "cy", "width", "height") if k not in raw]

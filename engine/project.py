@@ -258,6 +258,8 @@ def _read_json(path: Path) -> Any:
         raise ProjectError(f"{path}: cannot read ({exc})") from None
     except json.JSONDecodeError as exc:
         raise ProjectError(f"{path}: corrupt JSON at line {exc.lineno} ({exc.msg})") from None
+    except RecursionError:
+        raise ProjectError(f"{path}: JSON nested too deeply") from None
 
 
 def _read_index(folder: Path) -> dict[str, Any]:

@@ -50,7 +50,7 @@ def load_layout(path: str | Path) -> dict[str, tuple[float, float]]:
             obj = json.loads(text)
             items = obj["beacons"]
             layout = {str(b["id"]): (float(b["x_m"]), float(b["y_m"])) for b in items}
-        except (ValueError, KeyError, TypeError) as exc:
+        except (ValueError, KeyError, TypeError, RecursionError) as exc:
             raise SourceError(f"{p}: not a beacon layout JSON ({exc!s})") from None
         if int(obj.get("version", LAYOUT_VERSION)) > LAYOUT_VERSION:
             raise SourceError(f"{p}: layout version {obj.get('version')} is newer than supported")
@@ -224,7 +224,7 @@ def parse_datagram(
         raw = obj["ranges_m"]
         if not isinstance(raw, dict) or not math.isfinite(t):
             raise ValueError("ranges_m must be an object and timestamp_s finite")
-    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError, RecursionError) as exc:
         stats.note("malformed", f"udp: malformed datagram ({exc!s})")
         return None
     ranges: dict[str, float] = {}

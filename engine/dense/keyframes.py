@@ -219,6 +219,8 @@ class KeyframeStore:
             raise KeyframeStoreError(
                 f"{index_path}: corrupt JSON at line {exc.lineno} ({exc.msg})"
             ) from None
+        except RecursionError:
+            raise KeyframeStoreError(f"{index_path}: JSON nested too deeply") from None
         if not isinstance(raw, dict) or raw.get("format") != STORE_FORMAT:
             raise KeyframeStoreError(f"{index_path}: not a {STORE_FORMAT} index")
         version = raw.get("version")

@@ -269,6 +269,8 @@ def load_model(path: Path) -> tuple[PatchModel, NDArray[np.uint8]]:
         raise PresenterError(f"{jpath}: no such presenter model") from None
     except json.JSONDecodeError as exc:
         raise PresenterError(f"{jpath}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except RecursionError:
+        raise PresenterError(f"{jpath}: JSON nested too deeply") from None
     if doc.get("format") != "studiotrack.presenter_model" or doc.get("version") != MODEL_VERSION:
         raise PresenterError(f"{jpath}: not a version-{MODEL_VERSION} presenter model")
     img_path = jpath.parent / str(doc.get("reference_image", "reference.png"))

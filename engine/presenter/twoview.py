@@ -95,5 +95,5 @@ def load_floor_calibration(path: Path) -> FloorCalibration:
                                tuple(doc.get("robot_floor_xy_m", (0.0, 0.0))))  # type: ignore[arg-type]
     except FileNotFoundError:
         raise PresenterError(f"{path}: no such floor calibration") from None
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+    except (json.JSONDecodeError, KeyError, TypeError, RecursionError) as exc:
         raise PresenterError(f"{path}: malformed floor calibration ({exc})") from None

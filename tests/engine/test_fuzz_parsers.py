@@ -261,9 +261,6 @@ def test_deeply_nested_json_in_owned_parsers_is_a_clear_error(tmp_path):
         read_index(tmp_path)
 
 
-@pytest.mark.xfail(strict=True, raises=RecursionError,
-                   reason="engine.camera.load_camera_json lets RecursionError escape on deeply "
-                   "nested JSON (found by this fuzz suite; reported, not my module)")
 def test_camera_json_deeply_nested(tmp_path):
     from engine.camera import load_camera_json
 
@@ -272,10 +269,44 @@ def test_camera_json_deeply_nested(tmp_path):
         load_camera_json(tmp_path / "camera.json")
 
 
-@pytest.mark.xfail(strict=True, raises=RecursionError,
-                   reason="engine.beacons.io.parse_datagram lets RecursionError escape on a "
-                   "deeply nested UDP datagram (found by this fuzz suite; reported)")
 def test_beacon_datagram_deeply_nested():
     from engine.beacons.io import InputStats, parse_datagram
 
     assert parse_datagram(DEEP_JSON, None, InputStats()) is None
+
+
+@pytest.mark.parametrize(
+    "loader",
+    ["project", "presenter_model", "keyframe_store", "floor_calibration", "beacon_layout"],
+)
+def test_other_json_files_nested_too_deeply_give_clear_errors(tmp_path, loader):
+    from engine.errors import StudioTrackError
+
+    if loader == "project":
+        from engine.project import open_project as load
+
+        target = tmp_path
+        (tmp_path / "project.json").write_bytes(DEEP_JSON)
+    elif loader == "presenter_model":
+        from engine.presenter.model import load_model as load
+
+        target = tmp_path
+        (tmp_path / "model.json").write_bytes(DEEP_JSON)
+    elif loader == "keyframe_store":
+        from engine.dense.keyframes import KeyframeStore
+
+        load = KeyframeStore.load
+        target = tmp_path
+        (tmp_path / "keyframes.json").write_bytes(DEEP_JSON)
+    elif loader == "floor_calibration":
+        from engine.presenter.twoview import load_floor_calibration as load
+
+        target = tmp_path / "floor.json"
+        target.write_bytes(DEEP_JSON)
+    else:
+        from engine.beacons.io import load_layout as load
+
+        target = tmp_path / "layout.json"
+        target.write_bytes(DEEP_JSON)
+    with pytest.raises(StudioTrackError):
+        load(target)
