@@ -43,7 +43,9 @@ class Intrinsics:
         if not all(math.isfinite(v) for v in vals):
             raise CalibrationError(f"intrinsics contain a non-finite value: {vals}")
         if self.fx <= 0 or self.fy <= 0:
-            raise CalibrationError(f"focal lengths must be positive, got fx={self.fx} fy={self.fy}")
+            raise CalibrationError(
+                f"focal lengths must be positive, got fx={self.fx} fy={self.fy}"
+            )
         if self.width <= 0 or self.height <= 0:
             raise CalibrationError(f"image size must be positive, got {self.width}x{self.height}")
         if len(self.dist_k1k2p1p2k3) != 5:
@@ -162,7 +164,8 @@ def load_camera_json(path: str | Path) -> Intrinsics:
     except (OSError, UnicodeDecodeError) as exc:
         raise CalibrationError(f"{path}: cannot read ({exc})") from None
     except json.JSONDecodeError as exc:
-        raise CalibrationError(f"{path}: malformed JSON at line {exc.lineno} ({exc.msg})") from None
+        msg = f"{path}: malformed JSON at line {exc.lineno} ({exc.msg})"
+        raise CalibrationError(msg) from None
     except RecursionError:
         raise CalibrationError(f"{path}: JSON nested too deeply") from None
     if not isinstance(raw, dict):

@@ -57,7 +57,8 @@ def open_source(spec: str) -> Source:
         try:
             index = int(rest or "0")
         except ValueError:
-            raise SourceError(f"camera spec {spec!r}: expected camera:N with N an integer") from None
+            msg = f"camera spec {spec!r}: expected camera:N with N an integer"
+            raise SourceError(msg) from None
         return CameraSource(index)
     path = Path(spec).expanduser()
     if not path.exists():
@@ -78,4 +79,5 @@ def open_source(spec: str) -> Source:
         from engine.sources.video import VideoSource
 
         return VideoSource(path)
-    raise SourceError(f"{path}: unsupported source (expected a folder or {', '.join(VIDEO_SUFFIXES)})")
+    suffixes = ", ".join(VIDEO_SUFFIXES)
+    raise SourceError(f"{path}: unsupported source (expected a folder or {suffixes})")
