@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import traceback
 
-from PySide6.QtCore import QByteArray, QSize, Qt, Slot
+from PySide6.QtCore import QByteArray, QSize, Qt, QTimer, Slot
 from PySide6.QtGui import QAction, QCloseEvent, QIcon, QKeySequence
 from PySide6.QtWidgets import (
     QFrame,
@@ -107,6 +107,12 @@ class MainWindow(QMainWindow):
         from app.project_actions import install as install_project_actions
 
         self.project_actions = install_project_actions(self)  # File > New/Open/Save (issue 4)
+        # "starting" covers opening the source and the tracker's first frame, which can take
+        # seconds: the bridge only says "started" once frames flow
+        self._engine_poll = QTimer(self)
+        self._engine_poll.setInterval(250)
+        self._engine_poll.timeout.connect(self._poll_engine)
+        self._engine_poll.start()
         ctx.bridge.started.connect(self._on_started)
         ctx.bridge.failed.connect(self._on_failed)
         ctx.bridge.finished.connect(self._on_finished)
@@ -179,6 +185,13 @@ class MainWindow(QMainWindow):
         info = self.ctx.bridge.run_info
         if info is not None:
             self.engine_label.setText(f"Engine running · {info.tracker_name} · {info.source_name}")
+
+    @Slot()
+    def _poll_engine(self) -> None:
+        if self.ctx.bridge.is_running and self.engine_label.text() == "Engine idle":
+            self.engine_label.setText("Engine starting…")
+        elif not self.ctx.bridge.is_running and self.engine_label.text() == "Engine starting…":
+            self.engine_label.setText("Engine idle")
 
     @Slot(str)
     def _on_failed(self, message: str) -> None:

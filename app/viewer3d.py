@@ -2,7 +2,9 @@
 
 Shows the keyframe point cloud (fused depth, coloured by the keyframe grey values),
 keyframe frustums (click -> ``on_keyframe_clicked(kf_id)``), annotated points and the live
-camera frustum. viser is imported when the server starts (start-up stays fast); viser serves
+camera frustum. The live frustum follows a keyframe sweep being recorded and, once
+``follow(ctx.bridge)`` is called, the pose tracking on the Live page (:class:`LiveFollower`).
+viser is imported when the server starts (start-up stays fast); viser serves
 from its own thread and moves to the next port when the asked one is busy: read ``port``.
 Exports: the fused cloud (and an open3d TSDF mesh) as PLY.
 """
@@ -18,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from PySide6.QtCore import QObject, QTimer, Slot
 
 from engine.camera import Intrinsics, backproject_depth_image
 from engine.geometry import quat_xyzw_from_R
@@ -69,6 +72,19 @@ class StudioViewer:
         self._intr: Intrinsics | None = None
         self._cloud: tuple[F64, NDArray[np.uint8]] | None = None
         self._store: Any | None = None
+        self._live_intr: Intrinsics | None = None
+        self.follower: LiveFollower | None = None
+
+    def follow(self, bridge: Any, rate_hz: float = 20.0) -> LiveFollower:
+        """Move the live frustum with ``bridge.result_ready`` records (Live page tracking).
+
+        Call from the GUI thread; drawing is throttled to ``rate_hz`` (display is separate
+        from arrival). ``stop()`` disconnects it.
+        """
+        if self.follower is not None:
+            self.follower.stop()
+        self.follower = LiveFollower(self, bridge, rate_hz)
+        return self.follower
 
     @property
     def port(self) -> int:
@@ -101,8 +117,9 @@ class StudioViewer:
         color: tuple[int, int, int],
         scale: float,
         image: NDArray[np.uint8] | None = None,
+        intr: Intrinsics | None = None,
     ) -> Any:
-        intr = self._intr
+        intr = intr if intr is not None else self._intr
         assert intr is not None
         fov = 2.0 * math.atan2(intr.height / 2.0, intr.fy)
         return self.server.scene.add_camera_frustum(
@@ -166,23 +183,91 @@ class StudioViewer:
                 ),
             )
 
-    def set_live_camera(self, T_world_cam: F64 | None) -> None:
-        """The live camera frustum (orange), e.g. from each tracking record."""
+    def set_live_camera(
+        self, T_world_cam: F64 | None, intrinsics: Intrinsics | None = None
+    ) -> None:
+        """The live camera frustum (orange), e.g. from each tracking record.
+
+        The frustum takes the store's intrinsics, else ``intrinsics`` (the live frame's), so
+        it shows before any keyframe store exists.
+        """
         with self._lock:
-            if T_world_cam is None or self._intr is None:
+            if intrinsics is not None:
+                self._live_intr = intrinsics
+            intr = self._intr if self._intr is not None else self._live_intr
+            if T_world_cam is None or intr is None:
                 return
             h = self.nodes.get("/live_camera")
             if h is None:
                 self._put(
                     "/live_camera",
-                    self._frustum("/live_camera", np.asarray(T_world_cam), (255, 140, 0), 0.25),
+                    self._frustum(
+                        "/live_camera", np.asarray(T_world_cam), (255, 140, 0), 0.25, intr=intr
+                    ),
                 )
             else:
                 h.wxyz = _wxyz(np.asarray(T_world_cam))
                 h.position = tuple(float(v) for v in np.asarray(T_world_cam)[:3, 3])
 
     def stop(self) -> None:
+        if self.follower is not None:
+            self.follower.stop()
+            self.follower = None
         self.server.stop()
+
+
+class LiveFollower(QObject):
+    """Keeps a viewer's live frustum on the engine's latest pose (``result_ready`` records).
+
+    The slot only stores the latest record; a timer draws it, so a tracker running flat out
+    never floods the browser. Box and 2D trackers (no camera pose) are ignored.
+    """
+
+    def __init__(
+        self,
+        viewer: StudioViewer,
+        bridge: Any,
+        rate_hz: float = 20.0,
+        parent: QObject | None = None,
+    ) -> None:
+        super().__init__(parent)
+        self.viewer = viewer
+        self.bridge = bridge
+        self._latest: Any | None = None
+        self.drawn = 0  # frusta moved (tests)
+        self._timer = QTimer(self)
+        self._timer.setInterval(max(1, round(1000.0 / rate_hz)))
+        self._timer.timeout.connect(self.draw)
+        bridge.result_ready.connect(self._on_record)
+        self._timer.start()
+
+    @Slot(object)
+    def _on_record(self, record: Any) -> None:
+        self._latest = record
+
+    @Slot()
+    def draw(self) -> None:
+        record, self._latest = self._latest, None
+        if record is None or record.result.T_world_cam is None or not _is_pose(record):
+            return
+        self.viewer.set_live_camera(record.result.T_world_cam, record.frame.intrinsics)
+        self.drawn += 1
+
+    def stop(self) -> None:
+        self._timer.stop()
+        with contextlib.suppress(RuntimeError, TypeError):
+            self.bridge.result_ready.disconnect(self._on_record)
+
+
+def _is_pose(record: Any) -> bool:
+    """Whether the record's tracker outputs a camera pose (not a box or 2D position)."""
+    from engine.errors import TrackerError
+    from engine.trackers import get_spec
+
+    try:
+        return get_spec(record.tracker_name).output == "pose"
+    except TrackerError:  # a name outside the registry (a test fake): draw its pose
+        return True
 
 
 def export_cloud_ply(store: Any, path: str | Path, stride: int = 2) -> int:

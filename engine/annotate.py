@@ -137,12 +137,17 @@ def snap(
     A: F64 | None = None,
     patch_radius: int = 7,
     search_radius: int = 12,
-    min_score: float = 0.8,
+    min_score: float = 0.95,
 ) -> Snap:
     """Refine ``uv_pred`` to the best NCC match of the patch around ``uv_src``, sub-pixel.
 
     With ``A`` (see :func:`local_affine`) the destination is resampled into the source
-    patch's frame first, so that perspective and scale changes do not spoil the match."""
+    patch's frame first, so that perspective and scale changes do not spoil the match.
+
+    ``min_score``: the snap error grows fast as the NCC peak drops (built-in studio, 2 px
+    click error: median 0.05 px at scores >= 0.99, 0.1 px at 0.95-0.98, 0.17 px at 0.9-0.95,
+    0.7 px at 0.8-0.9), and SBA turns 0.1 px into centimetres on distant points, so only
+    clear matches are suggested; the operator clicks the others."""
     import cv2
 
     ps = 2 * patch_radius + 1

@@ -12,7 +12,9 @@ Unknowns: the poses ``T_cam_world`` of every annotated keyframe except the gauge
   eq. (2)-(4) (:func:`engine.camera.project`), per observation;
 - a depth term ``(z_ij - d_i(u_ij)) / sigma_z`` where the keyframe's depth map is valid: the
   RGB-D depth fixes the metric scale, which reprojection alone leaves free (a 7th gauge
-  freedom for a single fixed keyframe).
+  freedom for a single fixed keyframe). ``d_i(u_ij)`` is a local plane fit evaluated at the
+  sub-pixel observation (:func:`depth_plane`), ``sigma_z`` combines the sensor noise
+  ``depth_sigma_rel * z`` with the fit's residual (the depth map's own local noise).
 
 Both go through a robust loss (Huber by default), solved by ``scipy.optimize.least_squares``
 with a block-sparse Jacobian pattern (``jac_sparsity``): each residual depends on one pose
@@ -57,11 +59,20 @@ class SBAParams:
         metadata={"help": "robust loss: linear|huber|soft_l1|cauchy (cauchy ignores mis-clicks)"},
     )
     loss_scale_px: float = field(
-        default=2.0,
+        default=0.1,
         metadata={
             "help": "robust loss scale (px): larger residuals are down-weighted",
             "min": 0.1,
             "max": 100.0,
+        },
+    )
+    depth_loss_scale: float = field(
+        default=0.1,
+        metadata={
+            "help": "robust loss scale of the depth term (in its noise sigmas): depth "
+            "samples disagreeing with the points are down-weighted",
+            "min": 0.1,
+            "max": 1.0e9,
         },
     )
     use_depth: bool = field(
@@ -69,8 +80,13 @@ class SBAParams:
         metadata={"help": "use the keyframe depth at each observation (fixes the metric scale)"},
     )
     depth_sigma_rel: float = field(
-        default=0.01,
-        metadata={"help": "depth noise as a fraction of the depth", "min": 1e-4, "max": 1.0},
+        default=0.002,
+        metadata={
+            "help": "depth sensor noise as a fraction of the depth; the depth map's own "
+            "local noise (plane-fit residual at the observation) is added to it",
+            "min": 1e-4,
+            "max": 1.0,
+        },
     )
     max_nfev: int = field(
         default=200, metadata={"help": "function evaluations", "min": 5, "max": 10000}
@@ -215,6 +231,44 @@ def depth_at(
     if float(vals.max() - vals.min()) > max_rel_spread * med:
         return math.nan
     return med
+
+
+def depth_plane(
+    depth_m: NDArray[np.floating],
+    u: float,
+    v: float,
+    radius: int = 2,
+    max_rel_spread: float = math.inf,
+) -> tuple[float, float]:
+    """Depth at the sub-pixel position (u, v) and its local noise: a plane
+    ``z = a + b (u' - u) + c (v' - v)`` fitted to the valid depths of the (2r+1)^2 window
+    around the nearest pixel, evaluated at (u, v); the noise is the fit's RMS residual.
+
+    Unlike :func:`depth_at` (the window median at the nearest pixel) this has no bias of up to
+    half a pixel times the depth gradient on slanted surfaces (floors and walls seen at a
+    grazing angle), which at studio distances is centimetres. (NaN, NaN) where the window has
+    fewer than 6 valid depths or spreads more than ``max_rel_spread`` x median (a depth
+    edge)."""
+    h, w = depth_m.shape
+    iu, iv = round(u), round(v)
+    if not (0 <= iu < w and 0 <= iv < h):
+        return math.nan, math.nan
+    u0, u1 = max(0, iu - radius), min(w, iu + radius + 1)
+    v0, v1 = max(0, iv - radius), min(h, iv + radius + 1)
+    win = np.asarray(depth_m[v0:v1, u0:u1], dtype=np.float64)
+    vv, uu = np.mgrid[v0:v1, u0:u1]
+    ok = np.isfinite(win) & (win > 0)
+    if ok.sum() < 6:
+        return math.nan, math.nan
+    z = win[ok]
+    med = float(np.median(z))
+    if float(z.max() - z.min()) > max_rel_spread * med:
+        return math.nan, math.nan
+    A = np.column_stack([np.ones(z.size), uu[ok] - u, vv[ok] - v])
+    coef, *_ = np.linalg.lstsq(A, z, rcond=None)
+    res = z - A @ coef
+    dof = max(1, z.size - 3)
+    return float(coef[0]), float(math.sqrt(float(res @ res) / dof))
 
 
 def check_configuration(
@@ -389,14 +443,20 @@ def bundle_adjust(
     o_free = np.array([free_idx.get(o.kf_id, -1) for o in use])
     o_pt = np.array([pt_idx[o.point_id] for o in use])
     uv = np.array([[o.u, o.v] for o in use])
+    # depth term: the keyframe depth at the sub-pixel observation (local plane fit, no
+    # half-pixel bias), weighted by a noise model: sensor noise depth_sigma_rel x z combined
+    # with the depth map's own local noise (the plane fit's residual)
     z_obs = np.full(len(use), np.nan)
+    z_noise = np.zeros(len(use))
     if p.use_depth and depth_maps is not None:
         for i, o in enumerate(use):
             if o.kf_id in depth_maps:
-                z_obs[i] = depth_at(depth_maps[o.kf_id], o.u, o.v, 1, p.depth_edge_rel)
+                z_obs[i], z_noise[i] = depth_plane(
+                    depth_maps[o.kf_id], o.u, o.v, 1, p.depth_edge_rel
+                )
     has_z = np.isfinite(z_obs)
     z_idx = np.nonzero(has_z)[0]
-    sigma_z = p.depth_sigma_rel * z_obs[has_z]
+    sigma_z = np.hypot(p.depth_sigma_rel * z_obs[has_z], z_noise[has_z])
 
     def unpack(x: F64) -> tuple[F64, F64, F64]:
         poses = x[: 6 * n_f].reshape(n_f, 6)
@@ -499,8 +559,9 @@ def bundle_adjust(
             break
         r = residuals(x_cur)
         e_px = np.repeat(np.linalg.norm(r[: 2 * len(use)].reshape(-1, 2), axis=1), 2)
-        e = np.concatenate([e_px, np.abs(r[2 * len(use) :])])
-        w_new = np.sqrt(_robust_weight(e, p.loss, p.loss_scale_px))
+        w_px = _robust_weight(e_px, p.loss, p.loss_scale_px)
+        w_z = _robust_weight(np.abs(r[2 * len(use) :]), p.loss, p.depth_loss_scale)
+        w_new = np.sqrt(np.concatenate([w_px, w_z]))
         if n_prior:
             w_new[n_res - 6 * n_prior :] = 1.0  # the pose prior is not an outlier candidate
         if np.allclose(w_new, w_sqrt, atol=1e-3):
@@ -666,8 +727,9 @@ def synthetic_problem(
             u, v = uv[j] + rng.normal(scale=pixel_noise, size=2)
             if pc[j, 2] > 0.1 and 1 <= u < intr.width - 2 and 1 <= v < intr.height - 2:
                 obs.append(Observation(j, i, float(u), float(v)))
+                # independent noise per depth pixel, as a sensor has
                 dm[round(v) - 1 : round(v) + 2, round(u) - 1 : round(u) + 2] = pc[j, 2] * (
-                    1.0 + depth_noise_rel * rng.normal()
+                    1.0 + depth_noise_rel * rng.normal(size=(3, 3))
                 )
         depths[i] = dm
     return SyntheticProblem(intr, T_true, T_noisy, {j: X[j] for j in range(n_points)}, obs, depths)

@@ -25,6 +25,9 @@ from engine.geometry import pan_tilt_roll_deg
 
 EST_COLOURS = ("#ff6b6b", "#51cf66", "#4dabf7", "#ff6b6b", "#51cf66", "#4dabf7")
 GT_COLOUR = "#e6e9ee"
+#: smallest y span shown per unit: a still camera's sub-millimetre jitter stays a flat line
+#: instead of being stretched over the whole plot (with ticks like "5e-05")
+MIN_SPAN = {"m": 0.05, "°": 1.0, "mm": 5.0}
 POSE_CHANNELS = (
     ("x", "m"),
     ("y", "m"),
@@ -89,10 +92,18 @@ def _style_plot(plot: pg.PlotItem, name: str, unit: str, show_time: bool) -> Non
     left.enableAutoSIPrefix(False)
     left.setWidth(64)
     plot.setLabel("left", f"{name} ({unit})")
+    if unit in MIN_SPAN:
+        plot.getViewBox().setLimits(minYRange=MIN_SPAN[unit])
     bottom = plot.getAxis("bottom")
     bottom.enableAutoSIPrefix(False)
+    # before data arrive show 0-10 s: the default 0-1 range puts "0.20.40.60.8" on a narrow
+    # plot; auto-range stays on and takes over with the first samples
+    plot.getViewBox().setRange(xRange=(0.0, 10.0), padding=0.0, disableAutoRange=False)
     if show_time:
         plot.setLabel("bottom", "time (s)")
+    else:  # x-linked rows above the bottom one: the time values would only repeat
+        bottom.setStyle(showValues=False)
+        bottom.setHeight(6)
     plot.setMouseEnabled(x=False, y=True)
 
 
@@ -139,7 +150,13 @@ class PosePlots(pg.GraphicsLayoutWidget):
         self.gt_curves = [self.gt_curves[i] for i in order]
         for plot in self.plots[1:]:
             plot.setXLink(self.plots[0])
+        self.no_data: list[pg.TextItem] = []
+        for plot in self.plots:
+            text = pg.TextItem("no pose yet", color="#6b717c", anchor=(0.5, 0.5))
+            plot.addItem(text, ignoreBounds=True)
+            self.no_data.append(text)
         self.ci.setSpacing(2)
+        self.redraw()
 
     # GraphicsLayoutWidget copies ci.clear() etc. onto the instance, so a method named
     # ``clear`` here would be shadowed: hence ``clear_data``.
@@ -199,6 +216,11 @@ class PosePlots(pg.GraphicsLayoutWidget):
                 self.gt_curves[k].setData(t, gt[:, k])
             else:
                 self.gt_curves[k].clear()
+            has = bool(len(t)) and bool(np.any(np.isfinite(est[:, k])))
+            if not has:  # e.g. a box tracker: say so instead of showing empty axes
+                (x0, x1), (y0, y1) = self.plots[k].viewRange()
+                self.no_data[k].setPos((x0 + x1) / 2, (y0 + y1) / 2)
+            self.no_data[k].setVisible(not has)
 
     def curve_lengths(self) -> list[int]:
         """Points in each estimate curve (tests check the plots moved)."""
@@ -230,6 +252,7 @@ class ResidualPlots(pg.GraphicsLayoutWidget):
         self.plots[1].setYRange(0, 100, padding=0.02)
         self.plots[1].setMouseEnabled(x=False, y=False)
         self.plots[1].enableAutoRange(axis="y", enable=False)
+        self.plots[2].getViewBox().setLimits(yMin=0.0)  # a distance: never below zero
         # no x-link: a tracker without residuals would pin the shared range to [0, 1]
         self.no_data: list[pg.TextItem] = []
         for plot in self.plots:

@@ -11,7 +11,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from PySide6.QtCore import QStringListModel, Signal, Slot
+from PySide6.QtCore import QMargins, QPoint, QRect, QSize, QStringListModel, Qt, Signal, Slot
+from PySide6.QtGui import QResizeEvent
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -19,8 +20,11 @@ from PySide6.QtWidgets import (
     QFileDialog,
     QHBoxLayout,
     QLabel,
+    QLayout,
+    QLayoutItem,
     QLineEdit,
     QPushButton,
+    QSizePolicy,
     QSpinBox,
     QStackedWidget,
     QWidget,
@@ -54,6 +58,99 @@ def parse_synthetic(spec: str) -> dict[str, str]:
         if sep and key.strip():
             out[key.strip()] = value.strip()
     return out
+
+
+class FlowLayout(QLayout):
+    """Lays its widgets out left to right and wraps to the next line when the row is full.
+
+    The studio options then fit a narrow panel (Keyframes page) on two lines instead of
+    clipping every field, and stay on one line on a wide page. The last item may stretch to
+    fill the rest of its line (``stretch_last``).
+    """
+
+    def __init__(
+        self, parent: QWidget | None = None, spacing: int = 6, stretch_last: bool = False
+    ) -> None:
+        super().__init__(parent)
+        self._items: list[QLayoutItem] = []
+        self._spacing = spacing
+        self.stretch_last = stretch_last
+        self.setContentsMargins(QMargins(0, 0, 0, 0))
+
+    def addItem(self, item: QLayoutItem) -> None:
+        self._items.append(item)
+
+    def count(self) -> int:
+        return len(self._items)
+
+    def itemAt(self, index: int) -> QLayoutItem | None:  # type: ignore[override]
+        return self._items[index] if 0 <= index < len(self._items) else None
+
+    def takeAt(self, index: int) -> QLayoutItem | None:  # type: ignore[override]
+        return self._items.pop(index) if 0 <= index < len(self._items) else None
+
+    def expandingDirections(self) -> Qt.Orientation:
+        return Qt.Orientation(0)
+
+    def hasHeightForWidth(self) -> bool:
+        return True
+
+    def heightForWidth(self, width: int) -> int:
+        return self._do_layout(QRect(0, 0, width, 0), apply=False)
+
+    def setGeometry(self, rect: QRect) -> None:
+        super().setGeometry(rect)
+        self._do_layout(rect, apply=True)
+
+    def sizeHint(self) -> QSize:
+        w = sum(i.sizeHint().width() for i in self._items if not i.isEmpty())
+        w += self._spacing * max(0, len(self._items) - 1)
+        h = max((i.sizeHint().height() for i in self._items), default=0)
+        return QSize(w, h)
+
+    def minimumSize(self) -> QSize:
+        size = QSize()
+        for item in self._items:
+            size = size.expandedTo(item.minimumSize())
+        return size
+
+    def _do_layout(self, rect: QRect, apply: bool) -> int:
+        x, y, line_h = rect.x(), rect.y(), 0
+        lines: list[list[tuple[QLayoutItem, int]]] = [[]]
+        for item in self._items:
+            if item.isEmpty():
+                continue
+            w = item.sizeHint().width()
+            if lines[-1] and x + w > rect.right() + 1:
+                lines.append([])
+                x = rect.x()
+            lines[-1].append((item, w))
+            x += w + self._spacing
+        for n, line in enumerate(lines):
+            line_h = max((i.sizeHint().height() for i, _ in line), default=0)
+            x = rect.x()
+            for k, (item, w) in enumerate(line):
+                last = n == len(lines) - 1 and k == len(line) - 1
+                if last and self.stretch_last:
+                    w = max(w, rect.right() + 1 - x)
+                w = min(w, rect.width())
+                if apply:
+                    h = item.sizeHint().height()
+                    item.setGeometry(QRect(QPoint(x, y + (line_h - h) // 2), QSize(w, h)))
+                x += w + self._spacing
+            y += line_h + (self._spacing if n < len(lines) - 1 else 0)
+        return y - rect.y()
+
+
+def _flow(*widgets: QWidget, stretch_last: bool = False) -> QWidget:
+    w = QWidget()
+    layout = FlowLayout(w, stretch_last=stretch_last)
+    for child in widgets:
+        layout.addWidget(child)
+    policy = QSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Preferred)
+    policy.setHeightForWidth(True)
+    w.setSizePolicy(policy)
+    return w
 
 
 def _row(*widgets: QWidget, stretch_last: bool = False) -> QWidget:
@@ -146,10 +243,14 @@ class SourcePicker(QWidget):
         self.extra_line = QLineEdit()
         self.extra_line.setPlaceholderText("more options, e.g. noise=1")
         self.extra_line.setToolTip("Further key=value options of the studio, comma separated")
+        self.extra_line.setMinimumWidth(140)
+        # sized for typical values, not the range maximum: seed and length share a line
+        # when the picker sits in a narrow panel
+        self.seed_spin.setMaximumWidth(110)
+        self.frames_spin.setMaximumWidth(150)
         path_label = QLabel("path")
-        self.studio_page = _row(
-            path_label,
-            self.path_box,
+        self.studio_page = _flow(
+            _row(path_label, self.path_box),  # the label never wraps away from its box
             self.presenter_check,
             self.ball_check,
             self.seed_spin,
@@ -171,7 +272,7 @@ class SourcePicker(QWidget):
         layout = QHBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.setSpacing(6)
-        layout.addWidget(self.kind_box)
+        layout.addWidget(self.kind_box, 0, Qt.AlignmentFlag.AlignTop)
         layout.addWidget(self.stack, 1)
 
         self.kind_box.currentIndexChanged.connect(self._on_kind)
@@ -187,6 +288,22 @@ class SourcePicker(QWidget):
             self.camera_spin.valueChanged,
         ):
             sig.connect(self._emit)
+
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
+
+    # The studio options wrap (FlowLayout). Height-for-width is kept inside the picker: a
+    # page in a QScrollArea would otherwise be sized to its preferred height and scroll. The
+    # picker instead takes the height its current width needs.
+    def hasHeightForWidth(self) -> bool:
+        return False
+
+    def resizeEvent(self, event: QResizeEvent) -> None:
+        super().resizeEvent(event)
+        layout = self.layout()
+        h = layout.heightForWidth(self.width()) if layout.hasHeightForWidth() else -1
+        if h > 0 and h != self.minimumHeight():
+            self.setMinimumHeight(h)
+            self.updateGeometry()
 
     # ------------------------------------------------------------------- spec
     @property

@@ -151,9 +151,10 @@ class KeyframesPage(QWidget):
         self.sba_label = QLabel("Annotate points (tab 'Annotate'), then run SBA.")
         self.sba_label.setObjectName("sba_label")
         self.sba_label.setWordWrap(True)
-        # the GUI starts with a weak prior on the tracked poses: clicked studio points often
-        # leave the end-of-sweep keyframes weakly determined (see the issue report)
-        self.sba_form = ParamForm(SBAParams(pose_prior_m=0.02, pose_prior_deg=0.5))
+        # no pose prior by default: the prior pulls towards the current poses, i.e. towards
+        # the very drift SBA should remove (a 2 cm / 0.5 deg prior kept ~half of an injected
+        # 1-3 cm error); the operator spreads points over the drifted keyframes instead
+        self.sba_form = ParamForm(SBAParams())
         self.sba_table = QTableWidget(0, 4)
         self.sba_table.setHorizontalHeaderLabels(
             ["kf", "moved (mm)", "turned (deg)", "RMSE before/after (px)"]
@@ -601,6 +602,7 @@ class KeyframesPage(QWidget):
 
         if self.viewer is None:
             self.viewer = StudioViewer(on_keyframe_clicked=self._on_frustum_clicked)
+            self.viewer.follow(self.ctx.bridge)  # live frustum follows the Live page too
             self._update_viewer()
         self.view_label.setText(f"3D view at {self.viewer.url} (127.0.0.1 only)")
         if open_browser:

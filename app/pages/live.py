@@ -79,7 +79,7 @@ class LivePage(QWidget):
         self.source_picker.set_spec(DEFAULT_SOURCE)
         self.source_picker.set_recent(ctx.recent_files())
         self.tracker_box = QComboBox()
-        self.tracker_box.setMinimumWidth(170)
+        self.tracker_box.setMinimumWidth(120)
         self.tracker_box.setToolTip("Tracker to run")
         self._fill_trackers()
         self.realtime_check = QCheckBox("Real-time")
@@ -99,21 +99,30 @@ class LivePage(QWidget):
         for b in (self.start_button, self.stop_button):
             b.setMinimumWidth(84)
 
+        # Source on top (it takes the full width, so the studio options stay on one line
+        # even at 1280 px); tracker and Start/Stop head the side panel, next to the state
+        # light they change.
         top = QHBoxLayout()
         top.setSpacing(8)
         source_label = QLabel("Source")
         source_label.setObjectName("readout_caption")
         tracker_label = QLabel("Tracker")
         tracker_label.setObjectName("readout_caption")
-        top.addWidget(source_label)
+        source_label.setMinimumHeight(self.source_picker.kind_box.sizeHint().height())
+        top.addWidget(source_label, 0, Qt.AlignmentFlag.AlignTop)
         top.addWidget(self.source_picker, 1)
-        top.addSpacing(8)
-        top.addWidget(tracker_label)
-        top.addWidget(self.tracker_box)
-        top.addWidget(self.realtime_check)
-        top.addSpacing(8)
-        top.addWidget(self.start_button)
-        top.addWidget(self.stop_button)
+
+        run_box = QGroupBox("Run")
+        run_grid = QGridLayout(run_box)
+        run_grid.setHorizontalSpacing(8)
+        run_grid.addWidget(tracker_label, 0, 0)
+        run_grid.addWidget(self.tracker_box, 0, 1)
+        run_grid.addWidget(self.realtime_check, 0, 2)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.start_button, 1)
+        buttons.addWidget(self.stop_button, 1)
+        run_grid.addLayout(buttons, 1, 0, 1, 3)
+        run_grid.setColumnStretch(1, 1)
 
         # ---- views
         self.image_view = ImageView()
@@ -175,6 +184,7 @@ class LivePage(QWidget):
         side = QWidget()
         side_layout = QVBoxLayout(side)
         side_layout.setContentsMargins(0, 0, 0, 0)
+        side_layout.addWidget(run_box)
         side_layout.addWidget(state_box)
         side_layout.addWidget(params_box, 1)
         side.setMinimumWidth(270)

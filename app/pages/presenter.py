@@ -29,6 +29,7 @@ from PySide6.QtGui import QColor, QPainter
 from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
+    QFrame,
     QGridLayout,
     QGroupBox,
     QHBoxLayout,
@@ -40,6 +41,7 @@ from PySide6.QtWidgets import (
     QRadioButton,
     QScrollArea,
     QSplitter,
+    QTabWidget,
     QVBoxLayout,
     QWidget,
 )
@@ -173,6 +175,7 @@ class PresenterPage(QWidget):
         self.start_button.setObjectName("primary")
         self.start_button.clicked.connect(self.start_tracking)
         self.stop_button = QPushButton("Stop")
+        self.stop_button.setObjectName("presenter_stop")
         self.stop_button.clicked.connect(self.stop_tracking)
         self.realtime_check = QCheckBox("Real time")
         self.realtime_check.setChecked(True)
@@ -192,31 +195,49 @@ class PresenterPage(QWidget):
         self.particles_check = QCheckBox("Particle cloud")
         self.particles_check.setChecked(True)
         self.light = StatusLight()
-        self.readout = QLabel("idle")
+        self.readout = QLabel("Not tracking.")
         self.readout.setObjectName("readout")
         self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        self.control_label = QLabel("control: -")
+        self.control_label = QLabel("Robot-camera control: shown while tracking.")
+        self.control_label.setToolTip(
+            "e_f: framing error of the presenter in the image (px); e_d: distance error from "
+            "the overhead view (m); v: velocity command sent to the robot camera (eq. 7-8)"
+        )
         self.control_label.setWordWrap(True)
 
-        self.p_plot = pg.PlotWidget(title="colour likelihood P(z_col|s_t)")
+        self.p_plot = pg.PlotWidget(title="Colour likelihood")
         self.p_plot.setLogMode(y=True)
-        self.p_plot.addLegend(offset=(-5, 5), labelTextSize="8pt")
+        self.p_plot.setYRange(-6, 0)  # log10 decades until data arrive (no crowded minor ticks)
+        self.p_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=3)
+        self.p_plot.setToolTip("P(z_col|s_t): colour likelihood of the best particle (log "
+                               "scale); below Pmin the presenter counts as lost; Pref: at "
+                               "model time")
         self.p_curve = self.p_plot.plot(pen=pg.mkPen("#2ecc71", width=2), name="P")
         self.pmin_curve = self.p_plot.plot(pen=pg.mkPen("#ff4d4f", style=Qt.PenStyle.DashLine),
                                            name="Pmin")
         self.pref_curve = self.p_plot.plot(pen=pg.mkPen("#4cc3ff", style=Qt.PenStyle.DashLine),
                                            name="Pref")
-        self.xy_plot = pg.PlotWidget(title="x / y (px): raw vs filtered")
-        self.xy_plot.addLegend(offset=(-5, 5), labelTextSize="8pt")
+        self.xy_plot = pg.PlotWidget(title="Image position")
+        self.xy_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=2)
+        self.xy_plot.setToolTip("Presenter x, y in the image: raw particle-filter estimate vs "
+                                "the jitter-filtered one sent to the outputs")
         self.x_raw = self.xy_plot.plot(pen=pg.mkPen("#4cc3ff", width=1), name="x raw")
         self.x_f = self.xy_plot.plot(pen=pg.mkPen("#ffd24c", width=2), name="x filtered")
         self.y_raw = self.xy_plot.plot(pen=pg.mkPen("#ff7ad9", width=1), name="y raw")
         self.y_f = self.xy_plot.plot(pen=pg.mkPen("#9dff4c", width=2), name="y filtered")
-        self.d_plot = pg.PlotWidget(title="d (m) from the overhead view")
+        self.d_plot = pg.PlotWidget(title="Floor distance")
+        self.d_plot.setToolTip("Presenter distance d from the second (overhead) view, "
+                               "needs the four floor points")
         self.d_curve = self.d_plot.plot(pen=pg.mkPen("#ff8c42", width=2))
-        for plot in (self.p_plot, self.xy_plot, self.d_plot):
+        for plot, left_label in ((self.p_plot, "P"), (self.xy_plot, "x, y (px)"),
+                                 (self.d_plot, "d (m)")):
             plot.setMinimumHeight(120)
             plot.setMinimumWidth(200)
+            plot.setLabel("left", left_label)
+            plot.setLabel("bottom", "frame (last 300)")
+            plot.showGrid(x=True, y=True, alpha=0.18)
+            for side in ("left", "bottom"):
+                plot.getAxis(side).enableAutoSIPrefix(False)
 
         # ---------------------------------------------------------- layout
         left = QWidget()
@@ -241,6 +262,12 @@ class PresenterPage(QWidget):
 
         model_box = QGroupBox("Model")
         mg = QGridLayout(model_box)
+        self.model_hint = QLabel("No patches yet: press “Add patch” and drag head, torso and "
+                                 "legs on the reference image; their colour histograms then "
+                                 "appear above.")
+        self.model_hint.setWordWrap(True)
+        self.model_hint.setObjectName("readout_caption")
+        mg.addWidget(self.model_hint, 3, 0, 1, 2)
         mg.addWidget(self.patch_list, 0, 0, 1, 2)
         mg.addWidget(self.save_button, 1, 0)
         mg.addWidget(self.load_button, 1, 1)
@@ -259,11 +286,18 @@ class PresenterPage(QWidget):
         form_scroll = QScrollArea()
         form_scroll.setWidget(self.form)
         form_scroll.setWidgetResizable(True)
+        form_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        # Live state always visible; model and parameters share the rest as tabs, so the
+        # parameter list is not squeezed to two rows under the model at 1280 x 800
+        self.side_tabs = QTabWidget()
+        self.side_tabs.addTab(model_box, "Model")
+        self.side_tabs.addTab(form_scroll, "Parameters")
+        model_box.setTitle("")
+        model_box.setStyleSheet("QGroupBox { border: none; margin-top: 0; padding-top: 0; }")
         right = QWidget()
         rv = QVBoxLayout(right)
-        rv.addWidget(model_box)
         rv.addWidget(live_box)
-        rv.addWidget(form_scroll, 1)
+        rv.addWidget(self.side_tabs, 1)
 
         plots = QWidget()
         pv = QHBoxLayout(plots)
@@ -277,7 +311,7 @@ class PresenterPage(QWidget):
         centre.addWidget(plots)
         centre.setStretchFactor(0, 4)
         centre.setStretchFactor(1, 1)
-        centre.setSizes([700, 200])
+        centre.setSizes([600, 240])
         split = QSplitter(Qt.Orientation.Horizontal)
         split.addWidget(centre)
         split.addWidget(right)
@@ -292,6 +326,10 @@ class PresenterPage(QWidget):
         self.bridge.failed.connect(lambda msg: self._say(f"tracking failed: {msg}", "error"))
         self.bridge.started.connect(lambda: self._say("tracking started", "info"))
         self.bridge.finished.connect(self._on_finished)
+        # Stop is only live while tracking runs (a bright red Stop on an idle page misleads)
+        self.stop_button.setEnabled(False)
+        self.bridge.started.connect(lambda: self.stop_button.setEnabled(True))
+        self.bridge.finished.connect(lambda: self.stop_button.setEnabled(False))
         self.timer = QTimer(self)
         self.timer.setInterval(int(1000 / REDRAW_HZ))
         self.timer.timeout.connect(self.redraw)
@@ -386,6 +424,7 @@ class PresenterPage(QWidget):
         if 0 <= self.canvas.selected < self.patch_list.count():
             self.patch_list.setCurrentRow(self.canvas.selected)
         self.patch_list.blockSignals(False)
+        self.model_hint.setVisible(self.patch_list.count() == 0)
 
     def _refresh_histograms(self, model: Any) -> None:
         while self.hist_layout.count() > 1:
@@ -524,6 +563,7 @@ class PresenterPage(QWidget):
         self.canvas.show_model = False
         self.bridge.start(self.source_edit.text(), "presenter", params,
                           realtime=self.realtime_check.isChecked())
+        self.stop_button.setEnabled(self.bridge.is_running)
         return True
 
     @Slot()

@@ -52,6 +52,15 @@ def _shared_data() -> Path:
     return Path(__file__).resolve().parents[3] / "shared" / "data"
 
 
+def _axes(plot: Any, bottom: str, left: str) -> None:
+    """Axis labels with units; no SI prefixes (the units are in the labels)."""
+    plot.setLabel("bottom", bottom)
+    plot.setLabel("left", left)
+    for side in ("bottom", "left"):
+        plot.getAxis(side).enableAutoSIPrefix(False)
+    plot.showGrid(x=True, y=True, alpha=0.18)
+
+
 class ClickImage(pg.PlotWidget):
     """An image (row-major, y down) whose left clicks report image coordinates."""
 
@@ -61,6 +70,8 @@ class ClickImage(pg.PlotWidget):
         self.invertY(True)
         self.image_item = pg.ImageItem(axisOrder="row-major")
         self.addItem(self.image_item)
+        self.setLabel("bottom", "u (px)")
+        self.setLabel("left", "v (px)")
         self._on_click = on_click
         self.scene().sigMouseClicked.connect(self._clicked)
 
@@ -399,6 +410,8 @@ class LivePanel(QWidget):
         self.bridge = EngineBridge(self)
         self.bridge.result_ready.connect(self._on_record)
         self.bridge.failed.connect(self._on_failed)
+        self.bridge.started.connect(lambda: self.stop_button.setEnabled(True))
+        self.bridge.finished.connect(lambda: self.stop_button.setEnabled(False))
         self._latest: Any = None
         self._dirty = False
         self.t: list[float] = []
@@ -413,6 +426,9 @@ class LivePanel(QWidget):
         self.start_button = QPushButton("Start (ptz-sim)")
         self.start_button.setObjectName("ptz_start")
         self.stop_button = QPushButton("Stop")
+        self.stop_button.setObjectName("ptz_stop")
+        self.stop_button.setEnabled(False)  # enabled while the engine runs
+        self.start_button.setToolTip("Run the simulated pan-tilt studio with the ptz tracker")
         self.start_button.clicked.connect(self.start)
         self.stop_button.clicked.connect(self.stop)
         self.readout = QLabel("")
@@ -429,25 +445,31 @@ class LivePanel(QWidget):
             self.video.addItem(it)
 
         self.plots = pg.GraphicsLayoutWidget()
-        self.top = self.plots.addPlot(0, 0, title="top view x–y (m)")
+        # short titles (they must fit a 1280 px window) + axis labels carrying the units
+        self.top = self.plots.addPlot(0, 0, title="Top view")
         self.top.setAspectLocked(True)
+        _axes(self.top, "x (m)", "y (m)")
         self.top_truth = self.top.plot(pen=pg.mkPen(230, 230, 230, width=5))
         self.top_est = self.top.plot(pen=pg.mkPen(255, 90, 90, width=1.5))
-        self.zplot = self.plots.addPlot(0, 1, title="height z (m): est vs truth")
+        self.zplot = self.plots.addPlot(0, 1, title="Height")
+        _axes(self.zplot, "time (s)", "z (m)")
         self.z_truth = self.zplot.plot(pen=pg.mkPen(230, 230, 230))
         self.z_est = self.zplot.plot(pen=pg.mkPen(255, 90, 90, width=2))
-        self.pplot = self.plots.addPlot(1, 0, title="model probabilities (Fig. 6 left)")
+        self.pplot = self.plots.addPlot(1, 0, title="Models (Fig. 6 l.)")
+        _axes(self.pplot, "time (s)", "p")
         self.pplot.setYRange(0, 1.02)
         self.pplot.addLegend(offset=(5, 5))
         self.p_curves: list[Any] = []
-        self.wplot = self.plots.addPlot(1, 1, title="ω (rad/s): estimated vs real (Fig. 6 right)")
+        self.wplot = self.plots.addPlot(1, 1, title="Turn rate (Fig. 6 r.)")
+        _axes(self.wplot, "time (s)", "ω (rad/s)")
         self.w_est = self.wplot.plot(pen=pg.mkPen(90, 160, 255, width=2))
         self.w_true = self.wplot.plot(pen=pg.mkPen(255, 90, 90))
         self.kin_plots = []
         self.kin_items: list[list[tuple[Any, Any, Any, Any]]] = []
-        for k, title in enumerate(("position (m) ±2σ", "velocity (m/s) ±2σ",
-                                   "acceleration (m/s²) ±2σ")):
+        for k, (title, unit) in enumerate((("Position ±2σ", "m"), ("Velocity ±2σ", "m/s"),
+                                            ("Acceleration ±2σ", "m/s²"))):
             pl = self.plots.addPlot(2 + k // 2, k % 2, title=title)
+            _axes(pl, "time (s)", f"x y z ({unit})")
             items = []
             for a in range(3):
                 col = AXIS_COLOURS[a]
@@ -460,6 +482,11 @@ class LivePanel(QWidget):
                 items.append((lo, hi, est, tru))
             self.kin_plots.append(pl)
             self.kin_items.append(items)
+        self.plots.addLabel(
+            "top/height: red est., white truth<br>turn rate: blue est., red truth<br>"
+            "x red · y green · z blue<br>solid: est. · dashed: truth",
+            3, 1, color="#9aa3b2", size="9pt",
+        )
 
         left = QWidget()
         ll = QVBoxLayout(left)
@@ -469,11 +496,17 @@ class LivePanel(QWidget):
         ll.addLayout(row)
         ll.addWidget(self.readout)
         ll.addWidget(self.form, 1)
+        left.setMinimumWidth(300)  # combo boxes and 5-decimal spin boxes stay readable
+        self.readout.setText(
+            "Idle. Start runs the simulated pan-tilt studio (ptz-sim): the camera follows the "
+            "red target."
+        )
         split = QSplitter()
         split.addWidget(left)
         split.addWidget(self.video)
         split.addWidget(self.plots)
-        split.setSizes([260, 480, 620])
+        split.setSizes([310, 340, 560])
+        split.setCollapsible(0, False)
         lay = QVBoxLayout(self)
         lay.addWidget(split)
         self.timer = QTimer(self)
@@ -489,6 +522,7 @@ class LivePanel(QWidget):
             lst.clear()
         self.bridge.start(spec if isinstance(spec, str) else "ptz-sim:duration=60,period=50",
                           "ptz", self.form.params, realtime=realtime)
+        self.stop_button.setEnabled(self.bridge.is_running)
 
     def stop(self) -> None:
         self.bridge.stop()
@@ -580,9 +614,17 @@ class LivePanel(QWidget):
         )
         self.readout.setText(
             self.readout.text() + f"pos err {err * 100:.1f} cm  ω̂={self.omega[-1]:.3f} rad/s  "
-            f"pan/tilt {ex.get('ptz_pan_tilt_deg')}  resets {ex.get('resets')}  "
+            f"pan/tilt {_deg_pair(ex.get('ptz_pan_tilt_deg'))}  resets {ex.get('resets')}  "
             f"{1000.0 / max(rec.process_ms, 1e-3):.0f} updates/s"
         )
+
+
+def _deg_pair(value: Any) -> str:
+    try:
+        pan, tilt = (float(v) for v in value)
+    except (TypeError, ValueError):
+        return "–"
+    return f"{pan:.1f}° / {tilt:.1f}°"
 
 
 class PtzPage(QWidget):

@@ -20,6 +20,8 @@ from engine.fusion import FusionParams
 from engine.geometry import se3_exp
 from engine.keyframe_sweep import SweepParams, with_poses
 from engine.project import new_project, open_project
+from engine.sba import depth_at
+from engine.sources import open_source
 
 SPEC = "synthetic:frames=120,width=320,height=240,path=rail,cycle_s=8,dropouts=1"
 SHOTS = Path(os.environ.get("STUDIOTRACK_SHOTS", "/tmp/studiotrack_shots"))
@@ -28,6 +30,25 @@ SHOTS = Path(os.environ.get("STUDIOTRACK_SHOTS", "/tmp/studiotrack_shots"))
 def _grab(widget, name: str) -> None:  # type: ignore[no-untyped-def]
     SHOTS.mkdir(parents=True, exist_ok=True)
     widget.grab().save(str(SHOTS / name))
+
+
+def _grid_corners(kf, nx: int = 4, ny: int = 3, margin: int = 25) -> list[tuple[float, float]]:  # type: ignore[no-untyped-def]
+    """The strongest corner per grid cell that lies on one surface: no depth edge under the
+    15 x 15 patch the editor matches (depths within 5 %)."""
+    h, w = kf.gray.shape
+    corners = cv2.goodFeaturesToTrack(kf.gray, 400, 0.02, 10, blockSize=7)[:, 0, :]
+    cells: dict[tuple[int, int], tuple[float, float]] = {}
+    for u, v in corners:  # strongest first
+        if not (margin < u < w - margin and margin < v < h - margin):
+            continue
+        if not np.isfinite(depth_at(kf.depth_m, float(u), float(v), 7, 0.05)):
+            continue
+        c = (
+            int((u - margin) * nx // (w - 2 * margin)),
+            int((v - margin) * ny // (h - 2 * margin)),
+        )
+        cells.setdefault(c, (float(u), float(v)))
+    return [cells[c] for c in sorted(cells)]
 
 
 def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
@@ -73,6 +94,14 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     # ---- inject a known pose error into the last 3 keyframes (drift at the sweep's end)
     store = ctx.project.keyframes
     tracked = {k.id: k.T_world_cam.copy() for k in store.keyframes}
+    # ground truth of each keyframe (only to evaluate SBA): the frame it was recorded from
+    traj = page.recording.trajectory
+    src = open_source(SPEC)
+    frame_of = {
+        k: min(traj, key=lambda i, T=T: float(np.abs(traj[i] - T).sum()))  # type: ignore[misc]
+        for k, T in tracked.items()
+    }
+    truth = {k: src.frame(i).gt_T_world_cam for k, i in frame_of.items()}
     last = [k.id for k in store.keyframes][-3:]
     rng = np.random.default_rng(7)
     bad = {}
@@ -84,50 +113,36 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     page._set_store(with_poses(store, bad), "test: injected pose error")
     store = ctx.project.keyframes
 
-    # ---- annotate by clicks: the operator clicks textured points on smooth surfaces (no
-    # depth edge under the click) in every third keyframe; the editor predicts and snaps them
-    # in the other keyframes and the operator accepts the suggestions
-    from engine.sba import depth_at
-
+    # ---- annotate by clicks, as an operator would: in every third keyframe and in each
+    # drifted one, one well-textured corner per cell of a 4 x 3 grid over the view (points
+    # spread across the view, near and far), each on one surface (no depth edge under the
+    # matched patch), clicked with up to 2 px error; the editor predicts and snaps the point
+    # in the other keyframes and the operator accepts the confident suggestions
     page.tabs.setCurrentWidget(page.editor)
     ed = page.editor
     kfs = store.keyframes
     ed.set_keyframes(kfs[0].id, last[-1])
     qtbot.waitUntil(lambda: ed.left.height() > 300)  # the tab's layout has settled
-    clicks = 0
-    for a in range(0, len(kfs), 3):
+    anchors = sorted({*range(0, len(kfs), 3), len(kfs) - 2, len(kfs) - 1})
+    click_rng = np.random.default_rng(int(os.environ.get("STUDIOTRACK_CLICK_SEED", "11")))
+    for a in anchors:
         anchor = kfs[a]
-        ed.set_keyframes(anchor.id, kfs[min(a + 3, len(kfs) - 1)].id)
+        ed.set_keyframes(anchor.id, kfs[a - 1 if a else 1].id)
         ed.left.fit()
-        corners = cv2.goodFeaturesToTrack(anchor.gray, 300, 0.02, 20, blockSize=7)[:, 0, :]
-        good = []
-        for u, v in corners:
-            if not (25 < u < 295 and 25 < v < 215):
-                continue
-            z = depth_at(anchor.depth_m, float(u), float(v), 3, 0.02)
-            if np.isfinite(z):
-                good.append((z, float(u), float(v)))
-        good.sort()  # near to far: the operator spreads the points in depth and across the view
-        order = [
-            good[i] for i in np.linspace(0, len(good) - 1, min(len(good), 8)).round().astype(int)
-        ]
-        n = 0
-        for _z, u, v in order:
+        for u, v in _grid_corners(anchor):
+            r, phi = 2.0 * np.sqrt(click_rng.uniform()), click_rng.uniform(0, 2 * np.pi)
             qtbot.keyClick(ed, Qt.Key.Key_N)
-            pos = ed.left.to_widget(float(u), float(v)).toPoint()
+            pos = ed.left.to_widget(u + r * np.cos(phi), v + r * np.sin(phi)).toPoint()
             qtbot.mouseClick(ed.left, Qt.MouseButton.LeftButton, pos=pos)
-            clicks += 1
             if len(ed.suggested) >= 2:
                 qtbot.mouseClick(ed.accept_button, Qt.MouseButton.LeftButton)
-                n += 1
             else:
                 qtbot.keyClick(ed, Qt.Key.Key_Delete)  # no confident match: drop the point
-            if n >= 4:
-                break
     _grab(ed, "annotation_editor.png")
     pts = ctx.project.annotations
     assert len(pts) >= 8
     assert sum(len(p.observations_px) for p in pts) >= 8 * 4
+    assert all(sum(k in p.observations_px for p in pts) >= 8 for k in last)
     # undo / redo of the last acceptance
     n_obs = len(pts[-1].observations_px)
     ed.undo_stack.undo()
@@ -143,16 +158,29 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     assert sba.rmse_after_px < sba.rmse_before_px
     qtbot.mouseClick(page.apply_button, Qt.MouseButton.LeftButton)
     store = ctx.project.keyframes
-    err_before = np.mean([np.linalg.norm(bad[k][:3, 3] - tracked[k][:3, 3]) for k in last])
-    err_after = np.mean(
-        [np.linalg.norm(store.by_id(k).T_world_cam[:3, 3] - tracked[k][:3, 3]) for k in last]
-    )
+    # The error is measured against the ground truth expressed in the gauge keyframe's frame
+    # (SBA fixes the gauge's tracked pose), not against the pre-injection tracked poses: the
+    # clicks see the true studio, so a perfect SBA lands on the truth and also removes the
+    # sweep's own drift (~7 mm at its end), which a comparison with the tracked poses would
+    # count as error (it caps that "reduction" at ~65 %).
+    g = sba.gauge_id
+    align = tracked[g] @ np.linalg.inv(truth[g])
+    gt = {k: align @ truth[k] for k in last}
+
+    def centre_err(T: dict) -> float:  # type: ignore[type-arg]
+        return float(np.mean([np.linalg.norm(T[k][:3, 3] - gt[k][:3, 3]) for k in last]))
+
+    drift = centre_err(tracked)
+    err_before = centre_err(bad)
+    err_after = centre_err({k: store.by_id(k).T_world_cam for k in last})
     reduction = 1.0 - err_after / err_before
     print(
-        f"SBA: injected {1e3 * err_before:.1f} mm -> {1e3 * err_after:.1f} mm "
-        f"({100 * reduction:.1f} % removed); RMSE {sba.rmse_before_px:.2f} -> "
-        f"{sba.rmse_after_px:.2f} px"
+        f"SBA: {len(pts)} points; pose error of the drifted keyframes vs truth "
+        f"{1e3 * err_before:.1f} mm (sweep drift alone {1e3 * drift:.1f} mm) -> "
+        f"{1e3 * err_after:.1f} mm ({100 * reduction:.1f} % removed); RMSE "
+        f"{sba.rmse_before_px:.2f} -> {sba.rmse_after_px:.2f} px"
     )
+    assert reduction >= 0.75  # was 42 % before the fixes listed in the xfail reason
     page.tabs.setCurrentIndex(0)
     _grab(page, "keyframes_sba.png")
     # the 3D view of the project: keyframe frustums, cloud, annotated points; a frustum click
@@ -164,12 +192,6 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     assert f"/keyframes/kf_{last[-1]:04d}" in names
     page._on_frustum_clicked(last[0])
     qtbot.waitUntil(lambda: page.selected_keyframe() == last[0])
-    if reduction < 0.9:
-        # the operator reverts a bad adjustment and retakes the drifted keyframes (here:
-        # restores their tracked poses) so that the saved store is good
-        qtbot.mouseClick(page.revert_button, Qt.MouseButton.LeftButton)
-        assert ctx.project.keyframes.by_id(last[-1]).T_world_cam[0, 3] == bad[last[-1]][0, 3]
-        page._set_store(with_poses(ctx.project.keyframes, tracked), "test: retake")
     store = ctx.project.keyframes
 
     # ---- save, reopen, track with the store
@@ -178,7 +200,6 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     assert len(prj.keyframes) == len(store)
     assert len(prj.annotations) == len(pts)
     from engine.dense.tracking import DenseKeyframeTracker
-    from engine.sources import open_source
     from engine.trackers.dense import DenseParams
 
     tracker = DenseKeyframeTracker(DenseParams(), prj.keyframes)
@@ -195,8 +216,12 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     page.shutdown()
     if reduction < 0.9:
         pytest.xfail(
-            f"known gap: SBA on clicked studio annotations removed {100 * reduction:.0f} % of "
-            "the injected error (goal 90 %): the end-of-sweep keyframes see ~10 textured points "
-            "at 3.5-4.7 m in one corner of the view, so 0.1 px structured snap errors move them "
-            "by cm (snaps: median 0.08 px from truth); generated data reach 94 % (bench)"
+            f"known gap: SBA removed {100 * reduction:.0f} % of the pose error of the drifted "
+            "keyframes (goal 90 %); over click-error seeds 1-6 and 11 (53-55 clicked points) "
+            "86-94 %, median 90 %, 1.3-3.0 mm left. The solver has converged (more IRLS "
+            "rounds, x_scale='jac', tighter tolerances: no change) and exact projections of "
+            "the same points reach 99 %: the rest is snap noise (median 0.065 px, per-point "
+            "offsets up to 0.8 px) on points at 3-4.7 m, accumulated along the 3.3 m rail "
+            "from the gauge keyframe (the error grows along the chain: <0.7 mm mid-rail, "
+            "2-3.6 mm at its end)"
         )

@@ -301,3 +301,18 @@ def test_form_follows_a_run_started_elsewhere(qtbot, monkeypatch, ctx) -> None: 
     ctx.bridge.set_params(FakeParams(gain=3.0))
     assert live.param_form.params == FakeParams(gain=3.0)
     ctx.bridge.stop()
+
+
+def test_every_page_has_its_own_nav_icon(window) -> None:  # type: ignore[no-untyped-def]
+    from app.main import asset_path
+
+    for title in window.pages:
+        slug = title.lower().replace(" ", "_")
+        assert asset_path(f"icons/{slug}.svg").exists(), f"assets/icons/{slug}.svg missing"
+
+
+@pytest.mark.parametrize("title", ["Live", "Presenter", "Beacons", "PTZ"])
+def test_page_fits_a_1280x800_window(window, title) -> None:  # type: ignore[no-untyped-def]
+    """No horizontal scrolling at 1280 x 800: the page's minimum width fits beside the nav."""
+    room = 1280 - window.nav.width() - 24  # frame and scroll-bar margin
+    assert window.page(title).minimumSizeHint().width() <= room

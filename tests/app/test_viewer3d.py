@@ -67,3 +67,45 @@ def test_cloud_and_exports(store: KeyframeStore, tmp_path: Path) -> None:
     tris = export_mesh_ply(store, tmp_path / "mesh.ply", voxel_m=0.05)
     assert tris > 0
     assert (tmp_path / "mesh.ply").exists()
+
+
+def test_live_frustum_follows_bridge_records(qtbot) -> None:  # type: ignore[no-untyped-def]
+    """Live-page tracking (``bridge.result_ready``) moves the live frustum, no store needed."""
+    from PySide6.QtCore import QObject, Signal
+
+    from engine.frames import Frame
+    from engine.loop import FrameRecord
+    from engine.trackers.base import TrackResult, TrackState
+
+    class Bridge(QObject):
+        result_ready = Signal(object)
+
+    intr = Intrinsics(fx=60.0, fy=60.0, cx=39.5, cy=29.5, width=80, height=60)
+
+    def record(seq: int, x_m: float) -> FrameRecord:
+        T = np.eye(4)
+        T[0, 3] = x_m
+        frame = Frame(seq, seq / 30.0, np.zeros((60, 80, 3), np.uint8), intr)
+        result = TrackResult(TrackState.TRACKING, T_world_cam=T)
+        return FrameRecord(seq, frame, result, "dense", 1.0, 30.0, 0)
+
+    bridge = Bridge()
+    v = StudioViewer(port=8094)
+    try:
+        follower = v.follow(bridge, rate_hz=100.0)
+        bridge.result_ready.emit(record(0, 0.1))
+        qtbot.waitUntil(lambda: "/live_camera" in v.node_names(), timeout=3000)
+        np.testing.assert_allclose(v.nodes["/live_camera"].position, [0.1, 0, 0])
+        for i in range(1, 5):  # several records between two draws: the latest one is drawn
+            bridge.result_ready.emit(record(i, 0.1 * (i + 1)))
+        qtbot.waitUntil(lambda: abs(v.nodes["/live_camera"].position[0] - 0.5) < 1e-9)
+        drawn = follower.drawn
+        # a box tracker's record carries no camera pose: the frustum stays
+        box = TrackResult(TrackState.TRACKING, T_world_cam=np.eye(4), box_xywh=(1, 2, 3, 4))
+        bridge.result_ready.emit(FrameRecord(9, record(9, 0).frame, box, "kcf", 1.0, 30.0, 0))
+        qtbot.wait(50)
+        np.testing.assert_allclose(v.nodes["/live_camera"].position, [0.5, 0, 0])
+        assert follower.drawn == drawn
+    finally:
+        v.stop()
+    bridge.result_ready.emit(record(10, 2.0))  # stopped: disconnected, nothing raises
