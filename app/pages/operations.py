@@ -1,8 +1,10 @@
 """The Operations page: is the show healthy? Everything live, refreshed twice a second.
 
-Tracker frames/s, processing latency p50/p95 (last 600 frames), tracking state, output rate
-per target with its bind address and last send error, dropped samples, and the process's CPU
-and memory (psutil). Data arrival (``result_ready``) only appends numbers; a QTimer redraws.
+Tracker frames/s, processing latency p50/p95 (last 600 frames), tracking state, status and
+output rate per target with its bind address and last send error (configured targets show
+"off" while outputs are off; the output-rate curve is hidden then), dropped samples, and the
+process's CPU and memory (psutil). Data arrival (``result_ready``) only appends numbers; a
+QTimer redraws.
 """
 
 from __future__ import annotations
@@ -13,14 +15,14 @@ from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QGridLayout,
     QGroupBox,
-    QHBoxLayout,
     QHeaderView,
     QLabel,
+    QSizePolicy,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -32,7 +34,14 @@ from app.pages._outputs_state import controller
 
 REFRESH_MS = 500
 HISTORY = 240  # samples of the rate/memory plots (2 minutes at 2 Hz)
-COLUMNS = ("Target", "Bound to", "Rate (Hz)", "Packets", "Errors", "Last send error")
+COLUMNS = ("Target", "Bound to", "Status", "Rate (Hz)", "Packets", "Errors", "Last send error")
+COL = {name: i for i, name in enumerate(COLUMNS)}
+#: starting widths (px) of the interactive columns; numbers are sized to their contents
+#: "Target" takes the spare width; an error message is elided (full text in the tooltip)
+COLUMN_WIDTHS = {"Bound to": 150, "Status": 130, "Last send error": 300}
+ERROR_COLOR = "#e05050"
+OK_COLOR = "#4caf50"
+MUTED_COLOR = "#9aa0a6"
 
 
 class OperationsPage(QWidget):
@@ -52,6 +61,8 @@ class OperationsPage(QWidget):
 
         eng = QGroupBox("Engine")
         g = QGridLayout(eng)
+        g.setVerticalSpacing(2)
+        g.setHorizontalSpacing(18)
         items = [
             ("state", "Tracking state", "state of the last tracked frame"),
             ("fps", "Tracker frames/s", "engine loop rate (EMA)"),
@@ -62,33 +73,53 @@ class OperationsPage(QWidget):
             ("rss", "Memory (RSS)", "resident memory of the process"),
             ("threads", "Threads", "threads in the process"),
         ]
+        per_row = 4
         for i, (key, cap, tip) in enumerate(items):
             c = QLabel(cap)
             c.setToolTip(tip)
+            c.setStyleSheet(f"color: {MUTED_COLOR}")
             v = QLabel("–")
             v.setObjectName(f"ops_{key}")
             v.setToolTip(tip)
-            v.setStyleSheet("font-weight: bold")
-            g.addWidget(c, i // 2, (i % 2) * 2)
-            g.addWidget(v, i // 2, (i % 2) * 2 + 1)
+            v.setStyleSheet("font-weight: bold; font-size: 15px")
+            r, col = divmod(i, per_row)
+            g.addWidget(c, 2 * r, col)
+            g.addWidget(v, 2 * r + 1, col)
             self.values[key] = v
-        g.setRowStretch(len(items) // 2, 1)
+        for col in range(per_row):
+            g.setColumnStretch(col, 1)
+        eng.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
 
         out = QGroupBox("Outputs")
         ol = QVBoxLayout(out)
         self.sender_label = QLabel("Outputs off (enable them on the Outputs page)")
         self.sender_label.setObjectName("ops_sender")
+        # no word wrap: a wrapping label makes the page height-for-width, and the main
+        # window's scroll area would then size it by the plot's (large) size hint
+        self.sender_label.setSizePolicy(QSizePolicy.Policy.Ignored,
+                                        QSizePolicy.Policy.Preferred)
         self.table = QTableWidget(0, len(COLUMNS))
         self.table.setObjectName("ops_targets")
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
         self.table.verticalHeader().setVisible(False)
         self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
+        self.table.setSelectionMode(QAbstractItemView.SelectionMode.NoSelection)
+        self.table.setWordWrap(False)
+        self.table.setTextElideMode(Qt.TextElideMode.ElideMiddle)
         header = self.table.horizontalHeader()
-        for col in range(len(COLUMNS) - 1):
-            header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
-        header.setSectionResizeMode(len(COLUMNS) - 1, QHeaderView.ResizeMode.Stretch)
+        header.setStretchLastSection(False)
+        for name, col in COL.items():
+            if name == "Target":
+                header.setSectionResizeMode(col, QHeaderView.ResizeMode.Stretch)
+            elif name in COLUMN_WIDTHS:
+                header.setSectionResizeMode(col, QHeaderView.ResizeMode.Interactive)
+                header.resizeSection(col, COLUMN_WIDTHS[name])
+            else:
+                header.setSectionResizeMode(col, QHeaderView.ResizeMode.ResizeToContents)
+        self.table.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Maximum)
         ol.addWidget(self.sender_label)
         ol.addWidget(self.table)
+        out.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
 
         self.plot = pg.PlotWidget()
         self.plot.setObjectName("ops_plot")
@@ -101,12 +132,18 @@ class OperationsPage(QWidget):
         self.fps_hist: deque[float] = deque(maxlen=HISTORY)
         self.rate_hist: deque[float] = deque(maxlen=HISTORY)
 
-        top = QHBoxLayout()
-        top.addWidget(eng, 1)
-        top.addWidget(self.plot, 1)
+        self.legend = self.plot.plotItem.legend
+        self.plot.setMinimumHeight(180)
+        self.plot.enableAutoRange(axis="y", enable=False)
+        self.plot.setMouseEnabled(x=False, y=False)
+        self.rate_off = pg.TextItem("output Hz: off", color=MUTED_COLOR, anchor=(1, 0))
+        self.plot.addItem(self.rate_off, ignoreBounds=True)
+        self._rate_shown = True
+
         layout = QVBoxLayout(self)
-        layout.addLayout(top)
-        layout.addWidget(out, 1)
+        layout.addWidget(eng)
+        layout.addWidget(self.plot, 1)
+        layout.addWidget(out)
 
         self.timer = QTimer(self)
         self.timer.setInterval(REFRESH_MS)
@@ -136,10 +173,13 @@ class OperationsPage(QWidget):
         except Exception as exc:  # psutil on an exotic platform: show, never crash
             v["cpu"].setText(type(exc).__name__)
         st = c.stats()
-        rate = 0.0
+        rate = float("nan")
         if st is None:
-            self.sender_label.setText("Outputs off (enable them on the Outputs page)")
-            self.table.setRowCount(0)
+            self.sender_label.setText("Outputs off — nothing is sent (switch them on on the "
+                                      "Outputs page). Configured targets:")
+            # not bound to anything while off: say what it would bind to
+            rows = [(t.name, f"{t.effective_bind} (when on)", "off", "–", "–", "–", "–", "")
+                    for t in c.config.targets]
         else:
             self.sender_label.setText(
                 f"Samples submitted {st.submitted}, dropped (queue full) {st.dropped}, "
@@ -147,22 +187,65 @@ class OperationsPage(QWidget):
                 f"queue→sent latency p50 {st.latency_p50_ms:.2f} ms, "
                 f"p95 {st.latency_p95_ms:.2f} ms"
                 + (f" – {st.last_encode_error}" if st.last_encode_error else ""))
-            self.table.setRowCount(len(st.targets))
-            for r, t in enumerate(st.targets):
-                cells = (t.name, t.bind, f"{t.rate_hz:.1f}", str(t.packets_sent),
-                         str(t.errors), t.last_error or "–")
-                for col, text in enumerate(cells):
-                    item = QTableWidgetItem(text)
-                    if col == 4 and t.errors:
-                        item.setForeground(pg.mkColor("#e05050"))
-                    self.table.setItem(r, col, item)
+            rows = []
+            for t in st.targets:
+                if t.errors and t.rate_hz < 0.5:
+                    status = "error"
+                elif t.rate_hz >= 0.5:
+                    status = f"sending {t.rate_hz:.0f} Hz"
+                else:
+                    status = "waiting for poses"
+                rows.append((t.name, t.bind, status, f"{t.rate_hz:.1f}", str(t.packets_sent),
+                             str(t.errors), t.last_error or "–", t.last_error))
             rate = max((t.rate_hz for t in st.targets), default=0.0)
+        self.sender_label.setToolTip(self.sender_label.text())
+        self._fill_table(rows)
         self.fps_hist.append(c.fps if running else 0.0)
         self.rate_hist.append(rate)
         x = -np.arange(len(self.fps_hist))[::-1] * REFRESH_MS / 1000.0
-        self.fps_curve.setData(x, np.fromiter(self.fps_hist, dtype=np.float64))
-        self.rate_curve.setData(x, np.fromiter(self.rate_hist, dtype=np.float64))
+        fps = np.fromiter(self.fps_hist, dtype=np.float64)
+        rates = np.fromiter(self.rate_hist, dtype=np.float64)
+        self.fps_curve.setData(x, fps)
+        # Outputs off: no flat zero line -- the rate curve is hidden and the plot says "off".
+        self._show_rate(st is not None)
+        self.rate_curve.setData(x, rates, connect="finite")
+        top = np.nanmax(np.concatenate([fps, rates, [0.0]]))
+        self.plot.setYRange(0.0, max(10.0, float(top) * 1.15), padding=0)
+        self.plot.setXRange(min(float(x[0]), -10.0), 0.0, padding=0.02)
+        self.rate_off.setPos(0.0, max(10.0, float(top) * 1.15))
 
+    def _show_rate(self, on: bool) -> None:
+        if on == self._rate_shown:
+            return
+        self._rate_shown = on
+        self.rate_curve.setVisible(on)
+        self.rate_off.setVisible(not on)
+        if on:
+            self.legend.addItem(self.rate_curve, "output Hz")
+        else:
+            self.legend.removeItem(self.rate_curve)
+
+    def _fill_table(self, rows: list[tuple[str, ...]]) -> None:
+        self.table.setRowCount(len(rows))
+        for r, row in enumerate(rows):
+            *cells, tip = row
+            for col, text in enumerate(cells):
+                item = QTableWidgetItem(text)
+                if col in (COL["Rate (Hz)"], COL["Packets"], COL["Errors"]):
+                    item.setTextAlignment(Qt.AlignmentFlag.AlignRight
+                                          | Qt.AlignmentFlag.AlignVCenter)
+                if col == COL["Status"]:
+                    color = (ERROR_COLOR if text == "error" else OK_COLOR
+                             if text.startswith("sending") else MUTED_COLOR)
+                    item.setForeground(pg.mkColor(color))
+                if col == COL["Errors"] and text not in ("0", "–"):
+                    item.setForeground(pg.mkColor(ERROR_COLOR))
+                item.setToolTip(tip or text)
+                self.table.setItem(r, col, item)
+        # compact: exactly as tall as its rows (at least one empty row's worth)
+        h = self.table.horizontalHeader().height() + 2 * self.table.frameWidth()
+        h += sum(self.table.rowHeight(r) for r in range(len(rows))) or 24
+        self.table.setFixedHeight(h + 2)
 
 PAGE = PageSpec(title="Operations", order=60, factory=OperationsPage,
                 tooltip="Live health: frames/s, latency, output rates, errors, CPU, memory")

@@ -11,8 +11,8 @@ import pytest
 from app.context import AppContext
 from app.engine_bridge import EngineBridge
 from app.pages._outputs_state import controller
-from app.pages.operations import OperationsPage
-from app.pages.outputs import OutputsPage
+from app.pages.operations import COL, OperationsPage
+from app.pages.outputs import OutputsPage, bind_meaning
 from engine.outputs import freed as fd
 from engine.outputs import opentrackio as ot
 from tests.app.fakes import create_fake, open_fake
@@ -49,8 +49,24 @@ def test_pages_send_while_tracking_and_flag_lost_on_failure(qtbot, ctx):
     outputs.freed_port.setValue(rx_f.getsockname()[1])
     outputs.otio_port.setValue(rx_o.getsockname()[1])
     outputs.otio_enc.setCurrentText("cbor")
-    assert "bound to 127.0.0.1 (loopback only)" in outputs.bind_label.text()
+    assert outputs.bind_label.text() == "Binds to " + bind_meaning("127.0.0.1")
+    assert "loopback only; choose another address" in outputs.bind_label.text()
+    # edits are pending until applied; the send switch applies them first
+    assert outputs.pending
+    assert outputs.apply_button.isEnabled()
+    assert "changes pending" in outputs.pending_label.text()
+    # sending is off: targets say so (they are not "bound" to anything yet)
+    assert outputs.freed_status.text() == "off (sending is off)"
+    ops.refresh()
+    assert ops.table.rowCount() == 2
+    assert ops.table.item(0, COL["Status"]).text() == "off"
+    assert ops.table.item(0, COL["Bound to"]).text() == "127.0.0.1 (when on)"
+    assert not ops.rate_curve.isVisible()
+    assert ops.rate_off.isVisible()
     outputs.send_box.setChecked(True)
+    assert not outputs.pending
+    assert not outputs.apply_button.isEnabled()
+    assert "all changes applied" in outputs.pending_label.text()
     ctrl = controller(ctx)
     assert ctrl.enabled
     with qtbot.waitSignal(ctx.bridge.finished, timeout=10_000):
@@ -64,7 +80,15 @@ def test_pages_send_while_tracking_and_flag_lost_on_failure(qtbot, ctx):
     assert sample["tracker"]["status"] == "DEGRADED"  # the fake's frame 0
     ops.refresh()
     assert ops.table.rowCount() == 2
-    assert ops.table.item(0, 3).text() == "20"
+    assert ops.table.item(0, COL["Packets"]).text() == "20"
+    assert ops.table.item(0, COL["Bound to"]).text() == "127.0.0.1"
+    status = ops.table.item(0, COL["Status"]).text()
+    assert status == "waiting for poses" or status.startswith("sending"), status
+    assert ops.rate_curve.isVisible()
+    assert not ops.rate_off.isVisible()
+    outputs.refresh_status()
+    assert outputs.send_state.text() == "on — 2 targets"
+    assert outputs.freed_status.text() != "off (sending is off)"
     assert ops.values["frames"].text() == "20"
     assert ops.values["p50"].text().endswith("ms")
     if SHOTS:
@@ -103,3 +127,59 @@ def test_invalid_edit_keeps_last_valid_config(qtbot, ctx):
     page.points[2][1].setValue(2.0)
     assert page.apply()
     assert controller(ctx).config.studio.matrix[0, 3] == 1.0
+
+
+def test_apply_revert_and_pending_indicator(qtbot, ctx):
+    page = OutputsPage(ctx)
+    qtbot.addWidget(page)
+    assert page.apply()
+    assert not page.pending
+    assert not page.revert_button.isEnabled()
+    before = controller(ctx).config
+    page.freed_port.setValue(41234)
+    assert page.pending
+    assert page.revert_button.isEnabled()
+    assert "changes pending" in page.pending_label.text()
+    assert controller(ctx).config == before  # nothing in force until Apply
+    page.revert()
+    assert page.freed_port.value() == before.targets[0].port
+    assert not page.pending
+    page.otio_on.setChecked(False)
+    assert page.apply()
+    assert [t.protocol for t in controller(ctx).config.targets] == ["freed"]
+    assert page.otio_status.text() == "off (target disabled)"
+    page.freed_host.setText("192.0.2.1")
+    page.bind_edit.setText("127.0.0.1")
+    assert "192.0.2.1 cannot be reached from a loopback" in page.bind_label.text()
+    page.bind_edit.setText("0.0.0.0")
+    assert page.bind_label.text().startswith("Binds to 0.0.0.0 — all interfaces")
+
+
+@pytest.mark.parametrize("size", [(1120, 620)])  # page area of a 1280x800 window
+def test_pages_fit_a_1280x800_window_without_scrolling(qtbot, ctx, size):
+    from PySide6.QtWidgets import QSpinBox
+
+    for cls in (OutputsPage, OperationsPage):
+        page = cls(ctx)
+        qtbot.addWidget(page)
+        hint = page.minimumSizeHint()
+        assert hint.width() <= size[0], (cls.__name__, hint)
+        assert hint.height() <= size[1], (cls.__name__, hint)
+        layout = page.layout()
+        if layout.hasHeightForWidth():
+            assert layout.heightForWidth(size[0]) <= size[1], cls.__name__
+    # numeric editors keep a compact width instead of stretching across the column
+    page = OutputsPage(ctx)
+    # worst case: changes pending, a long send error, a bind warning
+    page.freed_host.setText("192.0.2.1")
+    page.bind_edit.setText("127.0.0.1")
+    page.freed_status.setText("error: " + "Network is unreachable " * 4)
+    page.error_label.setText("Not applied: " + "x" * 300)
+    assert page.pending
+    assert page.minimumSizeHint().width() <= size[0]
+    assert page.minimumSizeHint().height() <= size[1]
+    qtbot.addWidget(page)
+    page.resize(*size)
+    page.show()
+    for spin in page.findChildren(QSpinBox):
+        assert spin.width() <= 160
