@@ -51,12 +51,24 @@ QPushButton { padding: 4px 12px; border: 1px solid #444a55; border-radius: 3px;
     background: #2a2e36; }
 QPushButton:hover { background: #343944; }
 QPushButton:disabled { color: #6b717c; background: #23262c; }
-QPushButton#start_button { background: #1f6b3a; border-color: #2a8a4c; color: white;
+QPushButton#start_button, QPushButton#beacons_start, QPushButton#ptz_start,
+QPushButton#primary { background: #1f6b3a; border-color: #2a8a4c; color: white;
     font-weight: bold; }
-QPushButton#start_button:disabled { background: #23302a; color: #6b7d70; }
-QPushButton#stop_button { background: #7a2626; border-color: #9c3434; color: white;
+QPushButton#start_button:disabled, QPushButton#beacons_start:disabled,
+QPushButton#ptz_start:disabled, QPushButton#primary:disabled {
+    background: #23302a; color: #6b7d70; }
+QPushButton#stop_button, QPushButton#beacons_stop, QPushButton#ptz_stop,
+QPushButton#presenter_stop { background: #7a2626; border-color: #9c3434; color: white;
     font-weight: bold; }
-QPushButton#stop_button:disabled { background: #302424; color: #7d6b6b; }
+QPushButton#stop_button:disabled, QPushButton#beacons_stop:disabled,
+QPushButton#ptz_stop:disabled, QPushButton#presenter_stop:disabled {
+    background: #302424; color: #7d6b6b; }
+QTabWidget::pane { border: 1px solid #343842; border-radius: 3px; }
+QTabBar::tab { padding: 5px 12px; background: #23262c; color: #9aa3b2;
+    border: 1px solid #343842; border-bottom: none; border-top-left-radius: 3px;
+    border-top-right-radius: 3px; margin-right: 2px; }
+QTabBar::tab:selected { background: #2b3a55; color: #ffffff; border-color: #4c8dff; }
+QTabBar::tab:hover:!selected { background: #2a2e36; color: #dfe3ea; }
 QStatusBar { background: #1b1d22; color: #c9ced6; }
 QStatusBar QLabel { padding: 0 6px; }
 QDockWidget::title { background: #1b1d22; padding: 4px; color: #9aa3b2; }

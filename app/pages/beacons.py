@@ -113,6 +113,10 @@ class BeaconsPage(QWidget):
         self.err_plot.setLabel("bottom", "time step")
         self.err_plot.setLabel("left", "position error (m)")
         self.err_plot.getAxis("left").enableAutoSIPrefix(False)
+        # whole steps before a run (not 0.1 ... 0.9); auto-range takes over with data
+        self.err_plot.getViewBox().setRange(
+            xRange=(0.0, 120.0), yRange=(0.0, 1.0), padding=0.0, disableAutoRange=False
+        )
         self.err_item = self.err_plot.plot(pen=pg.mkPen(EST_COLOR, width=2))
 
         # ---- controls
@@ -148,8 +152,8 @@ class BeaconsPage(QWidget):
         sim_form.addRow("steps", self.steps_spin)
         sim_form.addRow("rate", self.fps_spin)
         sim_form.addRow("range noise", self.noise_spin)
-        sim_form.addRow("dropouts", self.dropout_spin)
-        sim_form.addRow("outliers", self.outlier_spin)
+        sim_form.addRow("dropout prob.", self.dropout_spin)
+        sim_form.addRow("outlier prob.", self.outlier_spin)
         sim_form.addRow("seed", self.seed_spin)
 
         self.add_button = QPushButton("Add")
@@ -298,7 +302,10 @@ class BeaconsPage(QWidget):
         self._layout_changed()
 
     def _layout_changed(self) -> None:
-        text = "  ".join(f"{k}({x:.1f}, {y:.1f})" for k, (x, y) in self.beacon_layout().items())
+        # no-break space inside a beacon's coordinates: the label wraps between beacons only
+        text = "   ".join(
+            f"{k}\u00a0({x:.1f},\u00a0{y:.1f})" for k, (x, y) in self.beacon_layout().items()
+        )
         suffix = " — applies at the next Start" if self.bridge.is_running else ""
         self.layout_label.setText(text + suffix)
 

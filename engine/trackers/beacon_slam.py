@@ -9,8 +9,9 @@ particle cloud, the beacon map with covariances and what was rejected.
 The beacon ids come from the layout in ``frame.extras["beacon_layout"]`` (else
 ``extras["beacon_ids"]``, else the first frame's readings); readings of other ids are
 ignored and counted (``extras["ignored_ids"]``). Frames without readings (live heartbeats)
-do not step the filter. A change of ``known_beacons``/``quadrant_init`` applies at the next
-reset; every other parameter (particle count, sigmas, p) at the next step.
+do not step the filter. A change of ``known_beacons``/``quadrant_init``/``ring_hypotheses``
+applies when a beacon is next initialised (reset); every other parameter (particle count,
+sigmas, p, ``ring_commit``) at the next step.
 """
 
 from __future__ import annotations

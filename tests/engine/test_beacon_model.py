@@ -267,3 +267,53 @@ def test_map_converges_over_the_run() -> None:
     t30, final = np.mean(new, axis=0)
     assert final < 0.85 * t30  # the old filter (collapsed map) got worse: 1.7 m -> 2.0 m
     assert final < 1.0
+
+
+# ---------------------------------------------------------------- start-up ambiguity (setting A)
+def _ring_mass_relative(f: BeaconSlamFilter, i: int, rel_deg: float, tol_deg: float) -> float:
+    """Weight of beacon i's start-up hypotheses at bearing ``rel_deg`` relative to each
+    particle's own heading from the start (the map frame itself is not fixed in setting A)."""
+    ring = f.rings[i]
+    h = f.cam - ring.centre
+    head = np.degrees(np.arctan2(h[:, 1], h[:, 0]))
+    rel = ring.hyp - ring.centre[:, None, :]
+    ang = np.degrees(np.arctan2(rel[..., 1], rel[..., 0])) - head[:, None]
+    near = np.abs((ang - rel_deg + 180.0) % 360.0 - 180.0) < tol_deg
+    return float(np.sum(f.weights[:, None] * np.exp(ring.log_w) * near))
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_ring_start_up_keeps_the_mirror_image_until_the_path_turns(seed: int) -> None:
+    """Along the straight first leg (heading 40 deg, turn at step 20) beacon B(22, 0), 40 deg
+    right of the path, and its mirror image 40 deg left of it fit the ranges equally well: the
+    start-up mixture keeps both sides (the old point start-up had settled all particles on
+    the middle by step 10) and resolves them after the turn."""
+    sim = simulate(PAPER_LAYOUT, SimConfig(seed=seed))
+    f = BeaconSlamFilter(sim.ids, BeaconFilterParams(hint_sigma_m=0.0), layout_xy=PAPER_LAYOUT,
+                         seed=7)
+    b = sim.ids.index("B")
+    for t in range(21):
+        f.step(sim.ranges_m[t])
+    assert b in f.rings
+    right = _ring_mass_relative(f, b, -40.0, 20.0)
+    left = _ring_mass_relative(f, b, 40.0, 20.0)
+    assert right > 0.15, (right, left)
+    assert left > 0.15, (right, left)
+    for t in range(21, len(sim.path_xy)):
+        f.step(sim.ranges_m[t])
+    assert not f.rings  # resolved after the turn: one point per particle again
+
+
+def test_ring_start_up_finds_the_map_shape_the_point_start_up_misses() -> None:
+    """Setting A (quadrants only, sec. III.B): the old one-point-per-beacon start-up settled on
+    a wrong middle solution (beacon error ~6 m after the best rotation/mirror)."""
+    from engine.bench.beacon import run_once
+
+    def err(params: BeaconFilterParams) -> float:
+        return float(np.median([run_once(params, s, SimConfig(), dict(PAPER_LAYOUT))
+                                ["beacon_err_final_aligned"] for s in range(6)]))
+
+    ring = err(BeaconFilterParams(hint_sigma_m=0.0))
+    point = err(BeaconFilterParams(hint_sigma_m=0.0, ring_hypotheses=0))
+    assert ring < 2.0
+    assert point > 2.0 * ring

@@ -23,8 +23,9 @@ def _err(T: dict, T_true: dict, ids) -> float:  # type: ignore[no-untyped-def]
     return float(np.mean([np.linalg.norm(T[k][:3, 3] - T_true[k][:3, 3]) for k in ids]))
 
 
-@pytest.mark.parametrize("distortion", [False, True])
-def test_sba_removes_injected_end_of_sweep_error(distortion: bool) -> None:
+@pytest.mark.parametrize(("distortion", "robust_k"), [(False, 2.385), (True, 2.385), (False, 0.0)])
+def test_sba_removes_injected_end_of_sweep_error(distortion: bool, robust_k: float) -> None:
+    """robust_k 0: the fixed tight robust scales (0.1 px, 0.1 depth sigma) on 0.1 px noise."""
     intr = TUM_DEFAULTS["freiburg1"] if distortion else None
     pr = synthetic_problem(
         12,
@@ -38,7 +39,11 @@ def test_sba_removes_injected_end_of_sweep_error(distortion: bool) -> None:
         intrinsics=intr,
     )
     res = bundle_adjust(
-        pr.intrinsics, pr.T_world_cam_noisy, pr.observations, depth_maps=pr.depth_maps
+        pr.intrinsics,
+        pr.T_world_cam_noisy,
+        pr.observations,
+        depth_maps=pr.depth_maps,
+        params=SBAParams(robust_k=robust_k),
     )
     pert = range(8, 12)
     before = _err(pr.T_world_cam_noisy, pr.T_world_cam_true, pert)
