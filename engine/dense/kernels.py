@@ -337,6 +337,99 @@ def evaluate(
 
 
 @njit(cache=True)
+def _fit_gain(
+    cs: np.ndarray, e: np.ndarray, valid: np.ndarray, wz: np.ndarray, beta0: float,
+    tmp: np.ndarray,
+) -> tuple[float, float]:
+    """Robust affine brightness model c* = alpha I + beta (auto exposure changes gain and
+    offset): Tukey-weighted least squares around the median offset ``beta0``."""
+    cnt = 0
+    for i in range(e.shape[0]):
+        if valid[i] and wz[i] > 0.0:
+            tmp[cnt] = abs(e[i] - beta0)
+            cnt += 1
+    med = np.median(tmp[:cnt])
+    inv = 1.0 / (TUKEY_C * max(med, 1e-3) * TUKEY_B)
+    sw = swx = swy = swxx = swxy = 0.0
+    for i in range(e.shape[0]):
+        if not (valid[i] and wz[i] > 0.0):
+            continue
+        u = abs(e[i] - beta0) * inv
+        if u >= 1.0:
+            continue
+        t = 1.0 - u * u
+        w = t * t * wz[i]
+        x = cs[i] - e[i]  # I(w(P; T))
+        y = cs[i]
+        sw += w
+        swx += w * x
+        swy += w * y
+        swxx += w * x * x
+        swxy += w * x * y
+    det = sw * swxx - swx * swx
+    if sw <= 0.0 or det <= 1e-9 * sw * sw:
+        return 1.0, beta0
+    alpha = (sw * swxy - swx * swy) / det
+    if not (0.5 < alpha < 2.0):
+        return 1.0, beta0
+    return alpha, (swy - alpha * swx) / sw
+
+
+@njit(cache=True)
+def evaluate_geometric(
+    P: np.ndarray,
+    N: np.ndarray,
+    depth: np.ndarray,
+    rays: np.ndarray,
+    T: np.ndarray,
+    T_cd: np.ndarray,
+    valid: np.ndarray,
+    uv: np.ndarray,
+    r: np.ndarray,
+    gvalid: np.ndarray,
+) -> int:
+    """Point-to-plane residual r = n . (T^-1 Q - P) in the reference frame, Q the current
+    depth point at the nearest full-resolution pixel of the warped point (projective
+    association, as ICP). Returns the number of points with a residual."""
+    hd, wd = depth.shape
+    # M = T^-1 T_cd: current depth-camera points (depth instant) into the reference frame
+    Ti = np.eye(4)
+    for a in range(3):
+        for b in range(3):
+            Ti[a, b] = T[b, a]
+    for a in range(3):
+        Ti[a, 3] = -(T[0, a] * T[0, 3] + T[1, a] * T[1, 3] + T[2, a] * T[2, 3])
+    M = Ti @ T_cd
+    R00, R01, R02, t0 = M[0, 0], M[0, 1], M[0, 2], M[0, 3]
+    R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
+    R20, R21, R22, t2 = M[2, 0], M[2, 1], M[2, 2], M[2, 3]
+    cnt = 0
+    for i in range(P.shape[0]):
+        gvalid[i] = False
+        r[i] = 0.0
+        if not valid[i]:
+            continue
+        if N[i, 0] == 0.0 and N[i, 1] == 0.0 and N[i, 2] == 0.0:
+            continue
+        ui = int(uv[i, 0] + 0.5)
+        vi = int(uv[i, 1] + 0.5)
+        if ui < 0 or vi < 0 or ui >= wd or vi >= hd:
+            continue
+        z = depth[vi, ui]
+        if not z > 0.0:
+            continue
+        X = rays[vi, ui, 0] * z
+        Y = rays[vi, ui, 1] * z
+        qx = R00 * X + R01 * Y + R02 * z + t0
+        qy = R10 * X + R11 * Y + R12 * z + t1
+        qz = R20 * X + R21 * Y + R22 * z + t2
+        r[i] = N[i, 0] * (qx - P[i, 0]) + N[i, 1] * (qy - P[i, 1]) + N[i, 2] * (qz - P[i, 2])
+        gvalid[i] = True
+        cnt += 1
+    return cnt
+
+
+@njit(cache=True)
 def minimize(
     P: np.ndarray,
     cstar: np.ndarray,
@@ -358,13 +451,26 @@ def minimize(
     w_out: np.ndarray,
     uv_out: np.ndarray,
     e_out: np.ndarray,
+    N: np.ndarray,
+    Jg: np.ndarray,
+    rays: np.ndarray,
+    geo_weight: float,
+    min_geo_scale: float,
+    T_cd: np.ndarray,
+    brightness_gain: bool,
+    step_tol: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Algorithm 1: coarse-to-fine inverse-compositional Gauss-Newton.
 
     ``cstar`` (3, n) and ``J`` (3, n, 6) are the reference intensities and the Jacobian of
     eq. (6) per level, computed once per reference. ``iters`` are per level 0..2 (fine to
     coarse); levels run 2 -> 0. Returns ``(T_cur_ref, stats)`` with stats =
-    (median |e|, valid fraction, inlier fraction, weighted RMS, ok, iterations, step norm).
+    (median |e|, valid fraction, inlier fraction, weighted RMS, ok, iterations, step norm,
+    brightness offset, brightness gain). Options beyond the paper: ``brightness_gain``
+    (affine model), ``step_tol`` (stop a level when |x| falls below it), ``geo_weight`` > 0
+    adds the point-to-plane residual of :func:`evaluate_geometric` (normals ``N``, Jacobian
+    ``Jg``, full-resolution rays, ``T_cd`` moving the current depth to the colour instant),
+    each residual scaled by its own robust (Tukey) scale.
     """
     n = P.shape[0]
     T = T0.copy()
@@ -376,7 +482,8 @@ def minimize(
     keep = np.zeros(n, dtype=np.bool_)
     tmp = np.zeros(n)
     beta = 0.0
-    stats = np.zeros(8)
+    alpha = 1.0
+    stats = np.zeros(9)
     ok = True
     total_iters = 0
     med = 0.0
@@ -384,6 +491,14 @@ def minimize(
     last_step = 0.0
     H = np.zeros((6, 6))
     g = np.zeros(6)
+    Hg = np.zeros((6, 6))
+    gg = np.zeros(6)
+    rg = np.zeros(n)
+    rg_abs = np.zeros(n)
+    gvalid = np.zeros(n, dtype=np.bool_)
+    gkeep = np.zeros(n, dtype=np.bool_)
+    wg = np.zeros(n)
+    use_geo = geo_weight > 0.0 and N.shape[0] == n
     for lev in range(2, -1, -1):
         img = img0 if lev == 0 else (img1 if lev == 1 else img2)
         for _it in range(iters[lev]):
@@ -405,8 +520,16 @@ def minimize(
                             tmp[cnt] = e[i]
                             cnt += 1
                     beta = np.median(tmp[:cnt]) if cnt >= 12 else 0.0
-                for i in range(n):
-                    e[i] -= beta
+                    alpha = 1.0
+                    if brightness_gain and cnt >= 12:
+                        alpha, beta = _fit_gain(cstar[lev], e, valid, wz, beta, tmp)
+                if alpha != 1.0:
+                    cs = cstar[lev]
+                    for i in range(n):
+                        e[i] = cs[i] - alpha * (cs[i] - e[i]) - beta
+                else:
+                    for i in range(n):
+                        e[i] -= beta
             # The median of eq. (9) over the points the depth test keeps: a presenter
             # rejected by eq. (12) must not inflate the Tukey scale for the background.
             nkeep = 0
@@ -428,6 +551,31 @@ def minimize(
             # the informative high-gradient points outliers after sub-pixel misalignment
             scale = TUKEY_C * max(med, min_median, 1e-6)
             _accumulate(J[lev], e, e_abs, wz, keep, scale, wc, H, g)
+            if use_geo:
+                # combined photometric + point-to-plane (ICP-like) cost, each residual in
+                # units of its own robust scale (an extension; the paper is photometric)
+                evaluate_geometric(P, N, depth, rays, T, T_cd, valid, uv_out, rg, gvalid)
+                ngk = 0
+                hig = 0.0
+                for i in range(n):
+                    a_i = abs(rg[i])
+                    rg_abs[i] = a_i
+                    k_i = gvalid[i] and wz[i] > 0.0
+                    gkeep[i] = k_i
+                    if k_i:
+                        ngk += 1
+                        if a_i > hig:
+                            hig = a_i
+                if ngk >= 12:
+                    medg = _histogram_median_known(rg_abs, gkeep, ngk, hig, N_HIST_BINS)
+                    scale_g = TUKEY_C * max(medg, min_geo_scale, 1e-9)
+                    _accumulate(Jg, rg, rg_abs, wz, gkeep, scale_g, wg, Hg, gg)
+                    a_c = 1.0 / (scale * scale)
+                    a_g = geo_weight / (scale_g * scale_g)
+                    for a in range(6):
+                        g[a] = a_c * g[a] + a_g * gg[a]
+                        for b in range(6):
+                            H[a, b] = a_c * H[a, b] + a_g * Hg[a, b]
             x, solved = _cholesky_solve6(H, -g)
             if not solved:
                 ok = False
@@ -440,6 +588,8 @@ def minimize(
             T = T @ _se3_exp(x)  # T^ <- T^ e^{A(x)}, sec. 3.1
             last_step = math.sqrt(np.sum(x * x))
             total_iters += 1
+            if last_step < step_tol:
+                break  # converged at this level: the counts are a cap
         if not ok:
             break
     sw = 0.0
@@ -462,6 +612,7 @@ def minimize(
     stats[5] = total_iters
     stats[6] = last_step
     stats[7] = beta
+    stats[8] = alpha
     return T, stats
 
 

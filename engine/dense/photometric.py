@@ -58,6 +58,50 @@ def _level0_rays(intr: Intrinsics) -> tuple[F64, NDArray[np.int64], NDArray[np.i
     return xy, (2 * u1).ravel(), (2 * v1).ravel()
 
 
+@functools.lru_cache(maxsize=8)
+def full_rays(intr: Intrinsics) -> F64:
+    """(h, w, 2) undistorted normalised rays of every full-resolution pixel (read-only)."""
+    u, v = np.meshgrid(np.arange(intr.width), np.arange(intr.height))
+    xy = np.stack([(u.ravel() - intr.cx) / intr.fx, (v.ravel() - intr.cy) / intr.fy], axis=1)
+    if intr.has_distortion:
+        xy = undistort_normalized(xy.astype(np.float64), intr.dist)
+    out = np.ascontiguousarray(xy.reshape(intr.height, intr.width, 2))
+    out.setflags(write=False)
+    return out
+
+
+def _normals(depth: F32, intr: Intrinsics, uf: NDArray[np.int64], vf: NDArray[np.int64],
+             P: F64, step: int = 2, max_jump: float = 0.05) -> F64:
+    """Unit surface normals (pointing at the camera) at full-resolution pixels ``(uf, vf)``
+    from the cross product of central depth differences ``step`` pixels away; zero where a
+    neighbour is missing or beyond a depth jump (``max_jump`` of the depth)."""
+    rays = full_rays(intr)
+    h, w = depth.shape
+    def point(du: int, dv: int) -> tuple[F64, NDArray[np.bool_]]:
+        uu = np.clip(uf + du, 0, w - 1)
+        vv = np.clip(vf + dv, 0, h - 1)
+        z = depth[vv, uu].astype(np.float64)
+        r = rays[vv, uu]
+        ok = (z > 0) & (np.abs(z - P[:, 2]) < max_jump * P[:, 2])
+        return np.stack([r[:, 0] * z, r[:, 1] * z, z], axis=1), ok
+    pr, okr = point(step, 0)
+    pl, okl = point(-step, 0)
+    pd, okd = point(0, step)
+    pu, oku = point(0, -step)
+    n = np.cross(pr - pl, pd - pu)
+    norm = np.linalg.norm(n, axis=1)
+    ok = okr & okl & okd & oku & (norm > 1e-12)
+    n = np.where(ok[:, None], n / np.where(norm > 0, norm, 1.0)[:, None], 0.0)
+    flip = np.sum(n * P, axis=1) > 0  # towards the camera
+    n[flip] = -n[flip]
+    return n
+
+
+_NO_N = np.zeros((0, 3))
+_NO_JG = np.zeros((0, 6))
+_NO_RAYS = np.zeros((1, 1, 2))
+
+
 def cam_vector(intr: Intrinsics) -> F64:
     return np.array([intr.fx, intr.fy, intr.cx, intr.cy], dtype=np.float64)
 
@@ -73,6 +117,8 @@ class Reference:
     intrinsics: Intrinsics
     n_requested: int
     extras: dict[str, float] = field(default_factory=dict)
+    normals: F64 | None = None  # (n, 3) unit normals (0: none), for the geometric term
+    Jg: F64 | None = None  # (n, 6) Jacobian of the point-to-plane residual (inverse comp.)
 
     @property
     def n(self) -> int:
@@ -88,9 +134,11 @@ def build_reference(
     border_px: int = 4,
     max_edge_depth_ratio: float = 0.05,
     T_color_depth: F64 | None = None,
+    with_normals: bool = False,
 ) -> Reference:
     """Select the ``n_points`` strongest-gradient points with valid depth (sec. 4.5, eq. (14))
-    and precompute c* and the Jacobian of eq. (6) at every level."""
+    and precompute c* and the Jacobian of eq. (6) at every level (``with_normals``: also the
+    surface normals and point-to-plane Jacobian of the optional geometric term)."""
     from engine.dense import kernels
 
     intr = pre.intrinsics
@@ -98,6 +146,7 @@ def build_reference(
     h0, w0 = l0.shape
     xy, uf, vf = _level0_rays(intr)
     z = pre.depth_m[vf, uf].astype(np.float64)
+
     cand = (z > min_depth_m) & (z < max_depth_m)
     if max_edge_depth_ratio > 0.0:
         # points on depth discontinuities have unreliable 3D positions (mixed foreground and
@@ -121,11 +170,20 @@ def build_reference(
     idx = select_points(g, cand, n_points)
     zi = z[idx]
     P = np.stack([xy[idx, 0] * zi, xy[idx, 1] * zi, zi], axis=1)
+    N = _normals(pre.depth_m, intr, uf[idx], vf[idx], P) if with_normals else None
     if T_color_depth is not None:
         # depth captured at another instant than the colour image: move the points into the
         # colour camera's pose (time-offset compensation, not in the paper)
         P = P @ T_color_depth[:3, :3].T + T_color_depth[:3, 3]
+        if N is not None:
+            N = N @ T_color_depth[:3, :3].T
     P = np.ascontiguousarray(P)
+    Jg = None
+    if N is not None:
+        N = np.ascontiguousarray(N)
+        # point-to-plane residual r = n . (T^-1 Q - P) (Q: current depth point); the inverse
+        # compositional increment gives the constant Jacobian [-n, -(P x n)] at x = 0
+        Jg = np.ascontiguousarray(np.concatenate([-N, -np.cross(P, N)], axis=1))
     n = P.shape[0]
     cstar = np.zeros((3, n))
     J = np.zeros((3, n, 6))
@@ -134,7 +192,7 @@ def build_reference(
         pyr.level_scales(), cstar, J,
     )
     uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float64)
-    return Reference(P, cstar, J, uv, intr, n_points)
+    return Reference(P, cstar, J, uv, intr, n_points, normals=N, Jg=Jg)
 
 
 def orthonormalize(T: F64) -> F64:
@@ -169,6 +227,7 @@ class AlignResult:
     uv_full: F32  # (n, 2) warped points in the current full-resolution image
     residuals: F32  # (n,)
     brightness_offset: float = 0.0  # removed global offset (grey levels), finest level
+    brightness_gain: float = 1.0  # fitted gain of the affine brightness model, finest level
 
 
 def align(
@@ -182,6 +241,11 @@ def align(
     use_depth: bool = True,
     min_residual_scale: float = 0.0,
     brightness_offset: bool = False,
+    geo_weight: float = 0.0,
+    min_geo_scale_m: float = 0.001,
+    T_color_depth: F64 | None = None,
+    brightness_gain: bool = False,
+    step_tol: float = 0.0,
 ) -> AlignResult:
     """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1)."""
     from engine.dense import kernels
@@ -198,6 +262,12 @@ def align(
         np.ascontiguousarray(T0_cur_ref, dtype=np.float64), float(tau_m),
         float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
         bool(brightness_offset), w, uv, e,
+        ref.normals if ref.normals is not None and geo_weight > 0 else _NO_N,
+        ref.Jg if ref.Jg is not None and geo_weight > 0 else _NO_JG,
+        full_rays(intr) if geo_weight > 0 else _NO_RAYS,
+        float(geo_weight), float(min_geo_scale_m),
+        np.eye(4) if T_color_depth is None else np.ascontiguousarray(T_color_depth, np.float64),
+        bool(brightness_gain and brightness_offset), float(step_tol),
     )
     ok = bool(st[4] > 0.5) and bool(np.all(np.isfinite(T)))
     if ok:
@@ -214,4 +284,5 @@ def align(
         uv_full=uv.astype(np.float32),
         residuals=e.astype(np.float32),
         brightness_offset=float(st[7]),
+        brightness_gain=float(st[8]),
     )

@@ -98,8 +98,11 @@ class _DenseBase:
         if self._pending is None:
             return False
         old, self._params, self._pending = self._params, self._pending, None
-        return (old.n_points, old.min_depth_m, old.max_depth_m) != (
-            self._params.n_points, self._params.min_depth_m, self._params.max_depth_m
+        return (
+            old.n_points, old.min_depth_m, old.max_depth_m, old.geometric_weight > 0
+        ) != (
+            self._params.n_points, self._params.min_depth_m, self._params.max_depth_m,
+            self._params.geometric_weight > 0,
         )
 
     def _prepare(self, frame: Frame) -> ph.Preprocessed:
@@ -120,6 +123,7 @@ class _DenseBase:
         return ph.build_reference(
             pre, p.n_points, min_depth_m=p.min_depth_m, max_depth_m=p.max_depth_m,
             T_color_depth=self._depth_delay_transform(frame),
+            with_normals=p.geometric_weight > 0,
         )
 
     def _note_good_pose(
@@ -153,12 +157,17 @@ class _DenseBase:
             return None
         return se3_exp(self._velocity * dt)  # T_color_depth = exp(xi (t_d - t_c))
 
-    def _align(self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64) -> _Attempt:
+    def _align(
+        self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64, frame: Frame | None = None
+    ) -> _Attempt:
         p = self._params
+        T_cd = self._depth_delay_transform(frame) if p.geometric_weight > 0 else None
         res = ph.align(
             ref, pre, T0, p.iterations_fine_to_coarse, tau_m=p.tau_m,
             use_depth=p.use_depth_weights, min_residual_scale=p.min_residual_scale,
-            brightness_offset=p.brightness_offset,
+            brightness_offset=p.brightness_offset, geo_weight=p.geometric_weight,
+            T_color_depth=T_cd, brightness_gain=p.brightness_gain,
+            step_tol=p.convergence_step,
         )
         good, why = _check(res, T0, p, self._max_residual())
         return _Attempt(res, good, why)
@@ -273,10 +282,10 @@ class DenseIncrementalTracker(_DenseBase):
             self._ref = self._build_reference(self._ref_pre)
         t = time.perf_counter()
         T0 = invert(self._predict()) @ self._T_world_ref
-        att = self._align(self._ref, pre, T0)
+        att = self._align(self._ref, pre, T0, frame)
         if not att.good and self._lost_frames > 0:
             # relocalise: also try from the reference pose itself
-            alt = self._align(self._ref, pre, np.eye(4))
+            alt = self._align(self._ref, pre, np.eye(4), frame)
             if alt.good or alt.res.median_abs_e < att.res.median_abs_e:
                 att = alt
         timings["minimize"] = (time.perf_counter() - t) * 1e3
@@ -390,7 +399,7 @@ class DenseKeyframeTracker(_DenseBase):
             timings["keyframe"] = (time.perf_counter() - t) * 1e3
             t = time.perf_counter()
             T0 = invert(self._predict()) @ kf.T_world_cam  # T^ = T_cur (T*)^-1, Alg. 3
-            att = self._align(ref, pre, T0)
+            att = self._align(ref, pre, T0, frame)
             timings["minimize"] = (time.perf_counter() - t) * 1e3
         return self._finish(frame, pre, att, kf, timings, extras, t_start)
 

@@ -14,6 +14,11 @@ test of eq. (12) keeps (a presenter does not inflate the Tukey scale); a global 
 offset (auto exposure) is removed once per pyramid level (``brightness_offset``); reference
 points are moved by the camera motion between the depth and colour timestamps when a source
 gives both (``compensate_depth_delay``, TUM); points on depth discontinuities are not selected.
+Off by default (measured on TUM fr1_xyz and the studio rail without a clear gain, see
+``studiotrack bench dense``): an affine brightness model (``brightness_gain``), a per-level
+convergence stop (``convergence_step``, the counts become caps) and a point-to-plane depth
+residual added to the photometric cost (``geometric_weight``, as in the authors' follow-up
+"direct ICP"; the current depth is moved to the colour instant like the reference points).
 """
 
 from __future__ import annotations
@@ -66,6 +71,23 @@ class DenseParams:
         default=25.0,
         metadata={"help": "LOST when the removed brightness offset exceeds this (grey levels)",
                   "min": 1.0, "max": 255.0},
+    )
+    brightness_gain: bool = field(
+        default=False,
+        metadata={"help": "affine brightness model (gain and offset, robust fit once per "
+                  "level) instead of the offset alone; needs brightness_offset"},
+    )
+    convergence_step: float = field(
+        default=0.0,
+        metadata={"help": "stop a level's iterations when the update |x| falls below this "
+                  "(the iteration counts are then a cap); 0: fixed counts (the paper)",
+                  "min": 0.0, "max": 0.01, "step": 1e-5},
+    )
+    geometric_weight: float = field(
+        default=0.0,
+        metadata={"help": "weight of a point-to-plane depth residual (ICP-like) added to the "
+                  "photometric cost, each in units of its robust scale; 0: photometric only "
+                  "(the paper)", "min": 0.0, "max": 10.0, "step": 0.1},
     )
     use_depth_weights: bool = field(
         default=True, metadata={"help": "apply the depth-consistency weights of eq. (11)-(12)"}

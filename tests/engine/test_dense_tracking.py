@@ -97,7 +97,9 @@ def test_moving_box_covering_30_percent_is_rejected(scene: PlaneScene) -> None:
         worst = max(worst, _err(res.T_world_cam, T)[0])
         # points landing on the box get (almost) no weight: the depth test of eq. (12)
         ov = res.overlay
-        assert ov is not None and ov.points_uv is not None and ov.point_weights is not None
+        assert ov is not None
+        assert ov.points_uv is not None
+        assert ov.point_weights is not None
         on_box = np.asarray(f.color_bgr)[:, :, 0] != g
         uv = np.round(ov.points_uv).astype(int)
         hit = on_box[uv[:, 1], uv[:, 0]]
