@@ -59,7 +59,7 @@ class KeyframePane(QWidget):
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self.setMinimumSize(320, 240)
+        self.setMinimumSize(240, 180)
         self.setMouseTracking(True)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self._img: QImage | None = None
@@ -231,7 +231,7 @@ class AnnotationEditor(QWidget):
         self.table.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
         self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
         self.table.verticalHeader().setVisible(False)
-        self.table.setMinimumWidth(380)
+        self.table.setMinimumWidth(260)
         hh = self.table.horizontalHeader()
         hh.setStretchLastSection(True)
         for c, w in enumerate((50, 80, 120)):

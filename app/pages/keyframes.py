@@ -21,6 +21,7 @@ from PySide6.QtWidgets import (
     QFileDialog,
     QGroupBox,
     QHBoxLayout,
+    QHeaderView,
     QLabel,
     QListView,
     QListWidget,
@@ -123,13 +124,14 @@ class KeyframesPage(QWidget):
             [
                 "kf",
                 "frames",
-                "holes before",
-                "holes after",
-                "noise before (mm)",
-                "noise after (mm)",
+                "holes\nbefore",
+                "holes\nafter",
+                "noise mm\nbefore",
+                "noise mm\nafter",
             ]
         )
         self.fusion_table.verticalHeader().setVisible(False)
+        _fit_columns(self.fusion_table)
         self.fuse_button.clicked.connect(self.start_fusion)
         self.cancel_button.clicked.connect(self.stop_job)
         fus_box = QGroupBox("2. Depth map fusion (Fig. 10)")
@@ -157,9 +159,10 @@ class KeyframesPage(QWidget):
         self.sba_form = ParamForm(SBAParams())
         self.sba_table = QTableWidget(0, 4)
         self.sba_table.setHorizontalHeaderLabels(
-            ["kf", "moved (mm)", "turned (deg)", "RMSE before/after (px)"]
+            ["kf", "moved\n(mm)", "turned\n(deg)", "RMSE before /\nafter (px)"]
         )
         self.sba_table.verticalHeader().setVisible(False)
+        _fit_columns(self.sba_table)
         self.sba_button.clicked.connect(self.start_sba)
         self.apply_button.clicked.connect(self.apply_sba)
         self.revert_button.clicked.connect(self.revert_sba)
@@ -647,3 +650,8 @@ PAGE = PageSpec(
     factory=_factory,
     tooltip="record, fuse, annotate and bundle-adjust the keyframe model",
 )
+
+
+def _fit_columns(table: QTableWidget) -> None:
+    """Columns share the table's width (two-line headers), so no header is clipped."""
+    table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
