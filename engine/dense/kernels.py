@@ -110,6 +110,28 @@ def _histogram_median_known(
     return lo
 
 
+@njit(cache=True, inline="always")
+def _abs_and_keep(
+    r: np.ndarray, valid: np.ndarray, wz: np.ndarray, r_abs: np.ndarray, keep: np.ndarray
+) -> tuple[int, float]:
+    """|r| into ``r_abs``; ``keep`` = valid and depth weight > 0 (eq. 12).
+
+    Returns the kept count and the largest kept |r| (the histogram range of eq. 9).
+    """
+    n_keep = 0
+    hi = 0.0
+    for i in range(r.shape[0]):
+        a_i = abs(r[i])
+        r_abs[i] = a_i
+        k_i = valid[i] and wz[i] > 0.0
+        keep[i] = k_i
+        if k_i:
+            n_keep += 1
+            if a_i > hi:
+                hi = a_i
+    return n_keep, hi
+
+
 @njit(cache=True)
 def tukey_weights(e_abs: np.ndarray, mask: np.ndarray, median: float, out: np.ndarray) -> None:
     """Eq. (9)-(10): u = |e| / (c median), w = (1 - (u/b)^2)^2 for u <= b else 0."""
@@ -532,17 +554,7 @@ def minimize(
                         e[i] -= beta
             # The median of eq. (9) over the points the depth test keeps: a presenter
             # rejected by eq. (12) must not inflate the Tukey scale for the background.
-            nkeep = 0
-            hi = 0.0
-            for i in range(n):
-                a_i = abs(e[i])
-                e_abs[i] = a_i
-                k_i = valid[i] and wz[i] > 0.0
-                keep[i] = k_i
-                if k_i:
-                    nkeep += 1
-                    if a_i > hi:
-                        hi = a_i
+            nkeep, hi = _abs_and_keep(e, valid, wz, e_abs, keep)
             if nkeep < 12:
                 ok = False
                 break
@@ -555,17 +567,7 @@ def minimize(
                 # combined photometric + point-to-plane (ICP-like) cost, each residual in
                 # units of its own robust scale (an extension; the paper is photometric)
                 evaluate_geometric(P, N, depth, rays, T, T_cd, valid, uv_out, rg, gvalid)
-                ngk = 0
-                hig = 0.0
-                for i in range(n):
-                    a_i = abs(rg[i])
-                    rg_abs[i] = a_i
-                    k_i = gvalid[i] and wz[i] > 0.0
-                    gkeep[i] = k_i
-                    if k_i:
-                        ngk += 1
-                        if a_i > hig:
-                            hig = a_i
+                ngk, hig = _abs_and_keep(rg, gvalid, wz, rg_abs, gkeep)
                 if ngk >= 12:
                     medg = _histogram_median_known(rg_abs, gkeep, ngk, hig, N_HIST_BINS)
                     scale_g = TUKEY_C * max(medg, min_geo_scale, 1e-9)
