@@ -157,17 +157,9 @@ def backproject_depth_image(cam: Intrinsics, depth_m: NDArray[np.floating]) -> F
 def load_camera_json(path: str | Path) -> Intrinsics:
     """Read ``camera.json`` (fx, fy, cx, cy, width, height, distortion[5], depth_scale)."""
     path = Path(path)
-    try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{path}: cannot read ({exc})") from None
-    except json.JSONDecodeError as exc:
-        msg = f"{path}: malformed JSON at line {exc.lineno} ({exc.msg})"
-        raise CalibrationError(msg) from None
-    except RecursionError:
-        raise CalibrationError(f"{path}: JSON nested too deeply") from None
+    from engine.persist import read_json_file
+
+    raw = read_json_file(path, CalibrationError, missing="file not found")
     if not isinstance(raw, dict):
         raise CalibrationError(f"{path}: expected a JSON object, got {type(raw).__name__}")
     missing = [k for k in ("fx", "fy", "cx", "cy", "width", "height") if k not in raw]

@@ -61,6 +61,30 @@ def atomic_write_png(path: Path, image: np.ndarray) -> None:
     atomic_write_bytes(path, enc.tobytes())
 
 
+def read_json_file(
+    path: Path,
+    error: type[Exception],
+    *,
+    missing: str = "not found",
+    corrupt: str = "malformed JSON",
+) -> Any:
+    """Parse a JSON file; every failure raises ``error`` with one line naming the file.
+
+    ``missing`` and ``corrupt`` word the not-found and parse-error messages for the caller
+    (e.g. "not found (not a keyframe store?)", "corrupt JSON").
+    """
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise error(f"{path}: {missing}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: cannot read ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise error(f"{path}: {corrupt} at line {exc.lineno} ({exc.msg})") from None
+    except RecursionError:
+        raise error(f"{path}: JSON nested too deeply") from None
+
+
 def backup_existing(path: Path, suffix: str = ".bak") -> Path | None:
     """Copy an existing file or folder to ``path + suffix`` (replacing an older backup)."""
     path = Path(path)

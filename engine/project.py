@@ -23,7 +23,6 @@ Opening never writes anything.
 from __future__ import annotations
 
 import contextlib
-import json
 import shutil
 import time
 from dataclasses import dataclass, field
@@ -35,6 +34,7 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
 from engine.errors import CalibrationError, StudioTrackError
+from engine.persist import read_json_file
 
 F64 = NDArray[np.float64]
 
@@ -250,16 +250,7 @@ def open_project(folder: str | Path) -> Project:
 
 
 def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ProjectError(f"{path}: not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ProjectError(f"{path}: cannot read ({exc})") from None
-    except json.JSONDecodeError as exc:
-        raise ProjectError(f"{path}: corrupt JSON at line {exc.lineno} ({exc.msg})") from None
-    except RecursionError:
-        raise ProjectError(f"{path}: JSON nested too deeply") from None
+    return read_json_file(path, ProjectError, corrupt="corrupt JSON")
 
 
 def _read_index(folder: Path) -> dict[str, Any]:

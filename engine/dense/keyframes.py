@@ -18,7 +18,6 @@ sensor range (Fig. 12).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +28,7 @@ from numpy.typing import NDArray
 from engine.camera import Intrinsics
 from engine.errors import CalibrationError, TrackerError
 from engine.geometry import invert, rotation_angle_rad
+from engine.persist import read_json_file
 
 F64 = NDArray[np.float64]
 
@@ -209,18 +209,12 @@ class KeyframeStore:
         index_path = folder / INDEX_NAME
         if not folder.is_dir():
             raise KeyframeStoreError(f"{folder}: keyframe store folder not found")
-        try:
-            raw = json.loads(index_path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise KeyframeStoreError(f"{index_path}: not found (not a keyframe store?)") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise KeyframeStoreError(f"{index_path}: cannot read ({exc})") from None
-        except json.JSONDecodeError as exc:
-            raise KeyframeStoreError(
-                f"{index_path}: corrupt JSON at line {exc.lineno} ({exc.msg})"
-            ) from None
-        except RecursionError:
-            raise KeyframeStoreError(f"{index_path}: JSON nested too deeply") from None
+        raw = read_json_file(
+            index_path,
+            KeyframeStoreError,
+            missing="not found (not a keyframe store?)",
+            corrupt="corrupt JSON",
+        )
         if not isinstance(raw, dict) or raw.get("format") != STORE_FORMAT:
             raise KeyframeStoreError(f"{index_path}: not a {STORE_FORMAT} index")
         version = raw.get("version")

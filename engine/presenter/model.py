@@ -14,7 +14,6 @@ rebuilt from the reference image on load, so nothing binary besides the PNG is s
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.persist import atomic_write_json, atomic_write_png
+from engine.persist import atomic_write_json, atomic_write_png, read_json_file
 from engine.presenter import PresenterError
 from engine.presenter.likelihood import (
     apply_gains,
@@ -263,14 +262,7 @@ def load_model(path: Path) -> tuple[PatchModel, NDArray[np.uint8]]:
     """Read a model folder (or its model.json); returns the model and the reference image."""
     path = Path(path)
     jpath = path / "model.json" if path.is_dir() else path
-    try:
-        doc = json.loads(jpath.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise PresenterError(f"{jpath}: no such presenter model") from None
-    except json.JSONDecodeError as exc:
-        raise PresenterError(f"{jpath}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    except RecursionError:
-        raise PresenterError(f"{jpath}: JSON nested too deeply") from None
+    doc = read_json_file(jpath, PresenterError, missing="no such presenter model")
     if doc.get("format") != "studiotrack.presenter_model" or doc.get("version") != MODEL_VERSION:
         raise PresenterError(f"{jpath}: not a version-{MODEL_VERSION} presenter model")
     img_path = jpath.parent / str(doc.get("reference_image", "reference.png"))

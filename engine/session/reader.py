@@ -14,6 +14,7 @@ import numpy as np
 from engine.camera import Intrinsics
 from engine.errors import CalibrationError
 from engine.frames import Frame
+from engine.persist import read_json_file
 from engine.session import FORMAT_NAME, FORMAT_VERSION, SessionError
 from engine.sources.base import Source
 
@@ -133,16 +134,9 @@ def parse_index(obj: Any, where: str = "index.json") -> SessionIndex:
 
 def read_index(session_dir: str | Path) -> SessionIndex:
     path = Path(session_dir) / "index.json"
-    try:
-        obj = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise SessionError(f"{path}: not found (is {session_dir} a session folder?)") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SessionError(f"{path}: cannot read ({exc})") from None
-    except json.JSONDecodeError as exc:
-        raise SessionError(f"{path}: malformed JSON at line {exc.lineno} ({exc.msg})") from None
-    except RecursionError:
-        raise SessionError(f"{path}: JSON nested too deeply") from None
+    obj = read_json_file(
+        path, SessionError, missing=f"not found (is {session_dir} a session folder?)"
+    )
     return parse_index(obj, str(path))
 
 
