@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import importlib
-import pkgutil
 import sys
 
-from app import commands as _commands_pkg
+from app.commands import add_command_parser, available_commands
 from engine.errors import StudioTrackError
 
 
@@ -18,11 +16,8 @@ def build_parser() -> argparse.ArgumentParser:
         "With no command, opens the operator window on the built-in studio and starts tracking.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in sorted(pkgutil.iter_modules(_commands_pkg.__path__), key=lambda m: m.name):
-        if mod.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"app.commands.{mod.name}")
-        module.register(sub)
+    for spec in available_commands().values():
+        add_command_parser(sub, spec)
     return parser
 
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("calibrate", help="camera calibration: chessboard, dlt, lines")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     csub = p.add_subparsers(dest="calib_kind", metavar="KIND", required=True)
 
     cb = csub.add_parser("chessboard", help="OpenCV chessboard calibration of IMAGES")
@@ -107,3 +107,12 @@ def _lines(args: argparse.Namespace) -> int:
         emit_json({**fit.model.to_json_dict(), "lines": len(lines),
                    "rms_before_px": fit.rms_before_px, "rms_after_px": fit.rms_after_px})
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="calibrate",
+        help="camera calibration: chessboard, dlt, lines",
+        add_arguments=add_arguments,
+    ),
+)

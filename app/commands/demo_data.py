@@ -6,18 +6,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 PATHS = ("rail", "pan", "handheld", "static")
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser(
-        "demo-data",
-        help="write the built-in virtual studio as a TUM RGB-D folder",
-        description="Render the built-in studio and write rgb/, depth/, rgb.txt, depth.txt, "
-        "groundtruth.txt and camera.json (plus presenter.txt with --presenter 1).",
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("out", type=Path, help="output folder (must not exist or be empty)")
     p.add_argument(
         "--frames",
@@ -36,7 +31,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "(see engine/sources/synthetic.py)",
     )
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
-    p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -72,3 +66,15 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         emit_json(summary)
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="demo-data",
+        help="write the built-in virtual studio as a TUM RGB-D folder",
+        description="Render the built-in studio and write rgb/, depth/, rgb.txt, depth.txt, "
+        "groundtruth.txt and camera.json (plus presenter.txt with --presenter 1).",
+        add_arguments=add_arguments,
+        run=_run,
+    ),
+)

@@ -12,15 +12,11 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser(
-        "eval",
-        help="ATE/RPE of an estimated TUM trajectory against ground truth (or OTB box scores)",
-        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gt", required=True, metavar="GT", help="ground truth (TUM or OTB boxes)")
     p.add_argument("--est", required=True, metavar="EST", help="estimate (same format as GT)")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
@@ -28,7 +24,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="max timestamp difference for association (s, default 0.02 as TUM)")
     p.add_argument("--delta", type=float, default=1.0, metavar="S",
                    help="RPE pose-pair spacing in seconds (default 1.0)")
-    p.set_defaults(func=run)
 
 
 def _columns(path: Path) -> int:
@@ -116,3 +111,14 @@ def run(args: argparse.Namespace) -> int:
         for k, v in res.items():
             print(f"{k:18s} {v:.6f}" if isinstance(v, float) else f"{k:18s} {v}")
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="eval",
+        help="ATE/RPE of an estimated TUM trajectory against ground truth (or OTB box scores)",
+        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        add_arguments=add_arguments,
+        run=run,
+    ),
+)

@@ -4,14 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+from app.commands import CommandSpec
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser(
-        "gui",
-        help="open the operator window and start tracking (default: the built-in studio)",
-        description="Open the operator window on SRC (default: the built-in virtual studio) "
-        "and start tracking immediately.",
-    )
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--source",
         metavar="SRC",
@@ -50,7 +46,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         action="store_false",
         help="process frames as fast as the tracker can",
     )
-    p.set_defaults(func=_run)
 
 
 def _positive_int(text: str) -> int:
@@ -75,3 +70,15 @@ def _run(args: argparse.Namespace) -> int:
         start=not args.no_start,
         realtime=args.realtime,
     )
+
+
+COMMANDS = (
+    CommandSpec(
+        name="gui",
+        help="open the operator window and start tracking (default: the built-in studio)",
+        description="Open the operator window on SRC (default: the built-in virtual studio) "
+        "and start tracking immediately.",
+        add_arguments=add_arguments,
+        run=_run,
+    ),
+)

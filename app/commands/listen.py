@@ -12,11 +12,11 @@ import select
 import socket
 import time
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("listen", help="receive and decode FreeD / OpenTrackIO packets (check)")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--freed", type=int, default=None, metavar="PORT", help="FreeD UDP port")
     p.add_argument("--opentrackio", type=int, default=None, metavar="PORT",
                    help="OpenTrackIO UDP port")
@@ -27,7 +27,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--count", type=int, default=None, help="stop after N samples")
     p.add_argument("--quiet", action="store_true", help="only the summary")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
-    p.set_defaults(func=_run)
 
 
 def _sock(bind: str, port: int, group: str | None = None) -> socket.socket:
@@ -106,3 +105,13 @@ def _run(args: argparse.Namespace) -> int:
     else:
         log(str(result))
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="listen",
+        help="receive and decode FreeD / OpenTrackIO packets (check)",
+        add_arguments=add_arguments,
+        run=_run,
+    ),
+)

@@ -10,12 +10,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 from app.commands._outputs_cli import add_output_arguments, describe, outputs_from_args
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("record", help="track a source headless and record a replayable session")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", metavar="SRC", help="source spec (synthetic:..., folder, video)")
     p.add_argument("--tracker", default=None, help="tracker name (default: the app's default)")
     p.add_argument("--out", required=True, type=Path, metavar="SESSION_DIR",
@@ -24,7 +24,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing session folder")
     add_output_arguments(p)
-    p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -56,3 +55,13 @@ def _run(args: argparse.Namespace) -> int:
     log(f"session {args.out}: {n} frames")
     emit_json({"frames": n, "session": str(args.out), "tracker": name, "status": "complete"})
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="record",
+        help="track a source headless and record a replayable session",
+        add_arguments=add_arguments,
+        run=_run,
+    ),
+)

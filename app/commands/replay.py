@@ -11,11 +11,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser("replay", help="replay a recorded session; export TUM/CSV/JSON")
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("session", type=Path, metavar="SESSION_DIR")
     p.add_argument("--out", type=Path, default=None, metavar="TRAJ.txt",
                    help="trajectory file: .txt/.tum (TUM), .csv or .json")
@@ -28,7 +28,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    "recorded one; 'identical' then compares against the recorded poses")
     p.add_argument("--max-frames", type=int, default=None, metavar="N")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
-    p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -64,3 +63,13 @@ def _run(args: argparse.Namespace) -> int:
         for k, v in result.items():
             print(f"{k}: {v}")
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="replay",
+        help="replay a recorded session; export TUM/CSV/JSON",
+        add_arguments=add_arguments,
+        run=_run,
+    ),
+)

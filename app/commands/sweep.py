@@ -10,16 +10,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser(
-        "sweep",
-        help="build a keyframe store for the dense tracker from a sweep of the empty studio",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", metavar="SRC", help="TUM folder, synthetic:..., camera:N")
     p.add_argument("--out", required=True, metavar="KEYFRAMES_DIR", help="store folder")
     p.add_argument("--frames", type=int, default=None, help="use at most this many frames")
@@ -29,7 +24,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="...or turned this much (deg) from all others (default 10)")
     p.add_argument("--points", type=int, default=None, help="reference points (default 8192)")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
-    p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -68,3 +62,15 @@ def _run(args: argparse.Namespace) -> int:
             }
         )
     return 0
+
+
+COMMANDS = (
+    CommandSpec(
+        name="sweep",
+        help="build a keyframe store for the dense tracker from a sweep of the empty studio",
+        description=__doc__,
+        raw_description=True,
+        add_arguments=add_arguments,
+        run=_run,
+    ),
+)

@@ -21,6 +21,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 from app.commands._outputs_cli import add_output_arguments, sending
 from engine.errors import TrackerError
@@ -32,13 +33,7 @@ if TYPE_CHECKING:
 _DISCOVERY_ERROR: list[str] = []
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    p = sub.add_parser(
-        "track",
-        help="track a source and write the trajectory (TUM) or boxes (x,y,w,h)",
-        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("source", metavar="SRC", help="TUM folder, OTB folder, video, camera:N, "
                    "synthetic[:key=value,...]")
     p.add_argument("--tracker", metavar="NAME", default=None,
@@ -54,7 +49,6 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                    help="print the chosen tracker's parameters with defaults and exit")
     _add_tracker_arguments(p)
     add_output_arguments(p)
-    p.set_defaults(func=run)
 
 
 def _add_tracker_arguments(p: argparse.ArgumentParser) -> None:
@@ -152,3 +146,15 @@ def _write_output(path: Path, tr_run: TrackingRun) -> None:
         write_boxes(path, tr_run.boxes_xywh)
     else:
         write_tum(path, tr_run.estimated_trajectory())
+
+
+COMMANDS = (
+    CommandSpec(
+        name="track",
+        help="track a source and write the trajectory (TUM) or boxes (x,y,w,h)",
+        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+        raw_description=True,
+        add_arguments=add_arguments,
+        run=run,
+    ),
+)

@@ -1,17 +1,19 @@
 """Main-window pages, auto-discovered.
 
-Each module in this package defines ``PAGE = PageSpec(title=..., order=..., factory=...)``;
+Each module in this package declares ``PAGES = (PageSpec(title=..., order=..., factory=...),)``;
 ``factory(ctx)`` builds the page widget from the shared :class:`app.context.AppContext`.
-Pages appear in the main window's navigation sorted by ``order`` (Live is 0).
+Pages appear in the main window's navigation sorted by ``order`` (Live is 0); orders are
+unique. ``trackers`` names the trackers a page starts with its own controls (their set-up and
+parameters live on that page); pages that start none, or any (Live), leave it empty.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
+
+from engine.registry import Registry
 
 if TYPE_CHECKING:
     from PySide6.QtWidgets import QWidget
@@ -23,15 +25,21 @@ class PageSpec:
     order: int
     factory: Callable[[Any], QWidget]
     tooltip: str = ""
+    trackers: tuple[str, ...] = ()
+
+
+def _title(spec: PageSpec) -> str:
+    return spec.title
+
+
+REGISTRY: Registry[PageSpec] = Registry("page", "PAGES", PageSpec, places=(__name__,), key=_title)
 
 
 def discover_pages() -> list[PageSpec]:
-    specs: list[PageSpec] = []
-    for mod in pkgutil.iter_modules(__path__):
-        if mod.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{__name__}.{mod.name}")
-        spec = getattr(module, "PAGE", None)
-        if spec is not None:
-            specs.append(spec)
-    return sorted(specs, key=lambda s: (s.order, s.title))
+    """Every page, in navigation order."""
+    return sorted(REGISTRY.specs().values(), key=lambda s: (s.order, s.title))
+
+
+def page_for_tracker(name: str) -> PageSpec | None:
+    """The page that drives tracker ``name`` with its own controls, if any."""
+    return next((p for p in discover_pages() if name in p.trackers), None)

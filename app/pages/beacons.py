@@ -482,9 +482,12 @@ def _factory(ctx: Any) -> QWidget:
     return BeaconsPage(ctx)
 
 
-PAGE = PageSpec(
-    title="Beacons",
-    order=60,
-    factory=_factory,
-    tooltip="Range-beacon camera tracking (particle-filter SLAM with Map Adjustment)",
+PAGES = (
+    PageSpec(
+        title="Beacons",
+        order=60,
+        factory=_factory,
+        tooltip="Range-beacon camera tracking (particle-filter SLAM with Map Adjustment)",
+        trackers=("beacon-slam",),
+    ),
 )

@@ -644,11 +644,13 @@ def _factory(ctx: Any) -> QWidget:
     return KeyframesPage(ctx)
 
 
-PAGE = PageSpec(
-    title="Keyframes",
-    order=10,
-    factory=_factory,
-    tooltip="record, fuse, annotate and bundle-adjust the keyframe model",
+PAGES = (
+    PageSpec(
+        title="Keyframes",
+        order=10,
+        factory=_factory,
+        tooltip="record, fuse, annotate and bundle-adjust the keyframe model",
+    ),
 )
 
 

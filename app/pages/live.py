@@ -502,9 +502,11 @@ def _factory(ctx: AppContext) -> QWidget:
     return LivePage(ctx)
 
 
-PAGE = PageSpec(
-    title="Live",
-    order=0,
-    factory=_factory,
-    tooltip="Track a source live: image, pose, quality and tracker parameters",
+PAGES = (
+    PageSpec(
+        title="Live",
+        order=0,
+        factory=_factory,
+        tooltip="Track a source live: image, pose, quality and tracker parameters",
+    ),
 )

@@ -247,5 +247,7 @@ class OperationsPage(QWidget):
         h += sum(self.table.rowHeight(r) for r in range(len(rows))) or 24
         self.table.setFixedHeight(h + 2)
 
-PAGE = PageSpec(title="Operations", order=60, factory=OperationsPage,
-                tooltip="Live health: frames/s, latency, output rates, errors, CPU, memory")
+PAGES = (
+    PageSpec(title="Operations", order=70, factory=OperationsPage,
+             tooltip="Live health: frames/s, latency, output rates, errors, CPU, memory"),
+)

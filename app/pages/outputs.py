@@ -501,5 +501,7 @@ class OutputsPage(QWidget):
             self.send_state.setStyleSheet(f"color: {OK_COLOR}")
 
 
-PAGE = PageSpec(title="Outputs", order=50, factory=OutputsPage,
-                tooltip="FreeD / OpenTrackIO targets, lens mapping, delays, studio frame")
+PAGES = (
+    PageSpec(title="Outputs", order=50, factory=OutputsPage,
+             tooltip="FreeD / OpenTrackIO targets, lens mapping, delays, studio frame"),
+)

@@ -661,10 +661,13 @@ def _factory(ctx: Any) -> QWidget:
     return PresenterPage(ctx)
 
 
-PAGE = PageSpec(
-    title="Presenter",
-    order=20,
-    factory=_factory,
-    tooltip="Presenter tracking (VR-TV multi-patch particle filter): model set-up, live "
-    "tuning, loss handling, robot-camera control",
+PAGES = (
+    PageSpec(
+        title="Presenter",
+        order=20,
+        factory=_factory,
+        tooltip="Presenter tracking (VR-TV multi-patch particle filter): model set-up, live "
+        "tuning, loss handling, robot-camera control",
+        trackers=("presenter",),
+    ),
 )

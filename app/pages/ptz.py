@@ -665,5 +665,7 @@ def _factory(ctx: Any) -> QWidget:
     return PtzPage(ctx)
 
 
-PAGE = PageSpec(title="PTZ", order=60, factory=_factory,
-                tooltip="pan-tilt camera target tracking (Gaspar 2009): calibration + live")
+PAGES = (
+    PageSpec(title="PTZ", order=80, factory=_factory, trackers=("ptz",),
+             tooltip="pan-tilt camera target tracking (Gaspar 2009): calibration + live"),
+)

@@ -1,25 +1,34 @@
 """Benchmarks run by ``studiotrack bench NAME``.
 
-Each module defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> dict``;
-``run`` prints human-readable progress to stderr and returns the machine-readable results
-(the CLI prints them as the last stdout line with ``--json``). Medians, and ratios against
-peers run side by side in the same process.
+Each module declares ``BENCHES = (BenchSpec(name, help, add_arguments, run),)``; ``run(args)``
+prints human-readable progress to stderr (:func:`engine.progress.log`) and returns the
+machine-readable results (the CLI prints them as the last stdout line with ``--json``).
+Medians, and ratios against peers run side by side in the same process.
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-from functools import cache
-from types import ModuleType
+import argparse
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from engine.registry import Registry
 
 
-@cache
-def available_benches() -> dict[str, ModuleType]:
-    out: dict[str, ModuleType] = {}
-    for mod in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if mod.name.startswith("_"):
-            continue
-        module = importlib.import_module(f"{__name__}.{mod.name}")
-        out[module.NAME] = module
-    return out
+@dataclass(frozen=True, slots=True)
+class BenchSpec:
+    """One ``studiotrack bench NAME``: its options and the function that measures."""
+
+    name: str
+    help: str
+    add_arguments: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], dict[str, Any]]
+
+
+REGISTRY: Registry[BenchSpec] = Registry("bench", "BENCHES", BenchSpec, places=(__name__,))
+
+
+def available_benches() -> Mapping[str, BenchSpec]:
+    """All registered benchmarks by name."""
+    return REGISTRY.specs()

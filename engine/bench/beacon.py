@@ -47,7 +47,8 @@ from typing import Any
 
 import numpy as np
 
-NAME = "beacon"
+from engine.bench import BenchSpec
+
 HELP = "range-beacon SLAM (Yang 2007): paper experiment, Map Adjustment, particles, speed"
 
 PARTICLE_GRID = (10, 20, 50, 100, 200, 500)
@@ -396,7 +397,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     ratio = sweeps["paper"]["ratio"]
     ratio_b = sweeps["paper"]["beacon"]["ratio"]
     return {
-        "bench": NAME,
+        "bench": "beacon",
         "setup": {"steps": sim_cfg.n_steps, "beacons": layout, "particles": 200,
                   "seeds": n_seeds, "range_noise_m": sim_cfg.noise_sigma_m,
                   "step_m": sim_cfg.speed_m, "motion_sigma_m": paper.motion_sigma_m,
@@ -437,3 +438,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                 and ratio_b is not None and ratio_b >= 2.0),
         "ok_speed_1000": bool(tracker_rate >= 1000.0 and math.isfinite(tracker_rate)),
     }
+
+
+BENCHES = (BenchSpec(name="beacon", help=HELP, add_arguments=add_arguments, run=run),)

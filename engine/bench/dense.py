@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-NAME = "dense"
+from engine.bench import BenchSpec
+
 HELP = "dense RGB-D trackers: speed, TUM accuracy, studio rail drift, keyframe count, memory"
 
 SWEEP_CYCLE_S = 12.0  # the empty-studio sweep is a slow pass
@@ -464,3 +465,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         out["plots"] = _plots(Path(args.plots), rail, kfc, per_cycle)
     out["seconds"] = time.perf_counter() - t_start
     return out
+
+
+BENCHES = (BenchSpec(name="dense", help=HELP, add_arguments=add_arguments, run=run),)

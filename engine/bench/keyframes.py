@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-NAME = "keyframes"
+from engine.bench import BenchSpec
+
 HELP = "SBA and depth fusion of the keyframe model (seconds, error reduction, holes)"
 
 
@@ -184,8 +185,11 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         f"{fusion['hole_fraction_after']:.4f}"
     )
     return {
-        "bench": NAME,
+        "bench": "keyframes",
         "sba": sba,
         "fusion": fusion,
         "note": "wall times on a shared 2-core machine; SBA median of --repeats runs",
     }
+
+
+BENCHES = (BenchSpec(name="keyframes", help=HELP, add_arguments=add_arguments, run=run),)

@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
+from engine.bench import BenchSpec
 from engine.frames import Frame
 
-NAME = "presenter"
 HELP = "presenter particle filter vs OpenCV KCF/MIL/CSRT (OTB metrics, loss, jitter)"
 
 ALL_SEQUENCES = ("studio", "otb_girl", "otb_kitesurf", "mil_david")
@@ -321,3 +321,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             out["jitter"] = jitter_scenario(max(args.frames or 200, 120))
             _log(f"jitter: {out['jitter']}")
     return {**results, **out}
+
+
+BENCHES = (BenchSpec(name="presenter", help=HELP, add_arguments=add_arguments, run=run),)

@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-NAME = "ptz"
+from engine.bench import BenchSpec
+
 HELP = "pan-tilt target tracker (Gaspar 2009): circle scenario, DLT, distortion, chessboard"
 
 
@@ -263,3 +264,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         for k, v in vals.items():
             flat[f"{group}.{k}"] = v
     return flat
+
+
+BENCHES = (BenchSpec(name="ptz", help=HELP, add_arguments=add_arguments, run=run),)

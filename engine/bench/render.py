@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-NAME = "render"
+from engine.bench import BenchSpec
+
 HELP = "speed of the built-in studio renderer (ms/frame, frames/s)"
 
 
@@ -268,3 +269,6 @@ def _open3d_peer(studio: Any, poses: list[np.ndarray]) -> tuple[list[float], lis
     assert depth.shape == (cam.height, cam.width)
     log(f"  open3d peer: {len(meshes)} meshes, depth only")
     return walls, cpus
+
+
+BENCHES = (BenchSpec(name="render", help=HELP, add_arguments=add_arguments, run=run),)

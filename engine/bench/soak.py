@@ -22,9 +22,9 @@ from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
+from engine.bench import BenchSpec
 from engine.sources.base import Source
 
-NAME = "soak"
 HELP = "track the built-in studio for N frames with FreeD + OpenTrackIO on: fps, RSS, packets"
 
 DEFAULT_SOURCE = "synthetic:width=320,height=240"
@@ -223,3 +223,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "wall_s": round(wall, 2),
         "warmup_frames": warmup,
     }
+
+
+BENCHES = (BenchSpec(name="soak", help=HELP, add_arguments=add_arguments, run=run),)

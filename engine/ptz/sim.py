@@ -22,7 +22,7 @@ from engine.camera import Intrinsics
 from engine.frames import Frame
 from engine.ptz.control import StepLimits, quantise
 from engine.ptz.kinematics import PtzHead
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec, parse_options
 
 F64 = NDArray[np.float64]
 
@@ -237,3 +237,13 @@ def open_ptz_sim(options: dict[str, str]) -> PtzSimSource:
     if sc.duration_s <= 0 or sc.fps <= 0 or sc.period_s <= 0:
         raise SourceError("ptz-sim: duration, fps and period must be positive")
     return PtzSimSource(sc, latency_frames=latency)
+
+
+SOURCES = (
+    SourceSpec(
+        name="ptz-sim",
+        description="a ball on a circle seen by a stepping pan-tilt camera",
+        opener=lambda rest: open_ptz_sim(parse_options(rest)),
+        example="ptz-sim:duration=60,period=50",
+    ),
+)

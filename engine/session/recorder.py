@@ -30,8 +30,7 @@ from engine.frames import Frame
 from engine.session import FORMAT_NAME, FORMAT_VERSION, RecordingStopped, SessionError
 from engine.session.reader import decode_depth_png
 from engine.sources.base import Source
-
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
+from engine.sources.video import VIDEO_SUFFIXES
 
 
 def _write_file(path: Path, data: bytes) -> None:

@@ -1,6 +1,10 @@
 """Open a frame source from a spec string.
 
-Specs:
+Every kind of source is declared by a :class:`engine.sources.base.SourceSpec` in a module-level
+``SOURCES`` tuple of the module that implements it; :data:`REGISTRY` finds them in this package
+and in the modules named in :data:`SOURCE_PLACES` (sources that live with their algorithm).
+Built in:
+
 - ``synthetic[:key=value,...]`` - the built-in virtual studio (see ``engine.studio``)
 - ``ptz-sim[:key=value,...]`` - ball on a circle seen by a stepping pan-tilt camera
   (``engine.ptz.sim``; closes the pan/tilt loop with the ``ptz`` tracker)
@@ -14,23 +18,42 @@ Specs:
 
 from __future__ import annotations
 
+import re
+from collections.abc import Mapping
 from pathlib import Path
 
 from engine.errors import SourceError
-from engine.sources.base import Source
+from engine.registry import Registry
+from engine.sources.base import Source, SourceSpec, parse_options
 
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
+__all__ = [
+    "REGISTRY",
+    "Source",
+    "SourceSpec",
+    "available_sources",
+    "open_source",
+    "parse_options",
+]
+
+#: where source specs are declared: this package, and sources that live with their algorithm
+SOURCE_PLACES = (__name__, "engine.ptz.sim")
+
+REGISTRY: Registry[SourceSpec] = Registry(
+    "source", "SOURCES", SourceSpec, places=SOURCE_PLACES, error=SourceError
+)
+
+_SCHEME = re.compile(r"[a-z][a-z0-9_-]*")
 
 
-def parse_options(text: str) -> dict[str, str]:
-    """``"a=1,b=x"`` -> ``{"a": "1", "b": "x"}``; a malformed item raises SourceError."""
-    out: dict[str, str] = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise SourceError(f"source option {item!r} is not key=value")
-        out[key.strip()] = value.strip()
-    return out
+def available_sources() -> Mapping[str, SourceSpec]:
+    """All registered source kinds by name."""
+    return REGISTRY.specs()
+
+
+def _expected(specs: Mapping[str, SourceSpec]) -> str:
+    paths = [s.description for s in specs.values() if s.is_path]
+    schemes = sorted(s.name for s in specs.values() if not s.is_path)
+    return f"expected {', '.join(paths)} or a spec {', '.join(f'{n}:...' for n in schemes)}"
 
 
 def open_source(spec: str) -> Source:
@@ -38,46 +61,23 @@ def open_source(spec: str) -> Source:
     spec = spec.strip()
     if not spec:
         raise SourceError("empty source spec")
+    specs = available_sources()
     kind, _, rest = spec.partition(":")
-    if kind == "synthetic":
-        from engine.sources.synthetic import SyntheticSource
-
-        return SyntheticSource.from_options(parse_options(rest))
-    if kind == "ptz-sim":
-        from engine.ptz.sim import open_ptz_sim
-
-        return open_ptz_sim(parse_options(rest))
-    if kind in ("beacons", "beacons-csv", "beacons-udp"):
-        from engine.sources.beacons import open_beacon_source
-
-        return open_beacon_source(kind, rest)
-    if kind == "camera":
-        from engine.sources.camera_live import CameraSource
-
-        try:
-            index = int(rest or "0")
-        except ValueError:
-            msg = f"camera spec {spec!r}: expected camera:N with N an integer"
-            raise SourceError(msg) from None
-        return CameraSource(index)
+    scheme = specs.get(kind)
+    if scheme is not None and not scheme.is_path:
+        return scheme.opener(rest)
     path = Path(spec).expanduser()
     if not path.exists():
+        if _SCHEME.fullmatch(kind) and rest:
+            raise SourceError(
+                f"{spec}: no such file or folder, and {kind!r} is not a source scheme; "
+                + _expected(specs)
+            )
         raise SourceError(f"{path}: no such file or folder")
-    if path.is_dir():
-        if (path / "rgb.txt").exists():
-            from engine.sources.tum import TumSource
-
-            return TumSource(path)
-        if (path / "img").is_dir() or (path / "imgs").is_dir():
-            from engine.sources.otb import OtbSource
-
-            return OtbSource(path)
-        raise SourceError(
-            f"{path}: not a TUM folder (no rgb.txt) nor an OTB/MIL folder (no img/ or imgs/)"
-        )
-    if path.suffix.lower() in VIDEO_SUFFIXES:
-        from engine.sources.video import VideoSource
-
-        return VideoSource(path)
-    suffixes = ", ".join(VIDEO_SUFFIXES)
-    raise SourceError(f"{path}: unsupported source (expected a folder or {suffixes})")
+    matches = [s for s in specs.values() if s.detect is not None and s.detect(path)]
+    if len(matches) > 1:
+        names = ", ".join(s.name for s in matches)
+        raise SourceError(f"{path}: looks like several kinds of source ({names})")
+    if not matches:
+        raise SourceError(f"{path}: unsupported source; " + _expected(specs))
+    return matches[0].opener(str(path))

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import abc
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
 
 from engine.camera import Intrinsics
+from engine.errors import SourceError
 from engine.frames import Frame
 
 
@@ -48,3 +51,36 @@ class Source(abc.ABC):
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+@dataclass(frozen=True, slots=True)
+class SourceSpec:
+    """How :func:`engine.sources.open_source` recognises and opens one kind of source.
+
+    A *scheme* source (``detect`` None) answers the spec strings ``name`` and ``name:REST``;
+    ``opener(REST)`` opens it (``REST`` is ``""`` for a bare ``name``). A *path* source answers
+    an existing file or folder for which ``detect(path)`` is true; ``opener(str(path))`` opens
+    it. ``description`` is one short phrase shown in error messages and help ("a TUM RGB-D
+    folder (rgb.txt)"); ``example`` a spec string that works.
+    """
+
+    name: str
+    description: str
+    opener: Callable[[str], Source]
+    detect: Callable[[Path], bool] | None = None
+    example: str = ""
+
+    @property
+    def is_path(self) -> bool:
+        return self.detect is not None
+
+
+def parse_options(text: str) -> dict[str, str]:
+    """``"a=1,b=x"`` -> ``{"a": "1", "b": "x"}``; a malformed item raises SourceError."""
+    out: dict[str, str] = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise SourceError(f"source option {item!r} is not key=value")
+        out[key.strip()] = value.strip()
+    return out

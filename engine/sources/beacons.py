@@ -30,7 +30,7 @@ import numpy as np
 from engine.camera import Intrinsics
 from engine.errors import ParamsError, SourceError
 from engine.frames import Frame
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec
 
 DEFAULT_UDP_PORT = 9870
 
@@ -303,3 +303,25 @@ def open_beacon_source(kind: str, rest: str) -> Source:
     if kind == "beacons-udp":
         return BeaconUdpSource.from_options(parse_options(rest))
     raise SourceError(f"unknown beacon source kind {kind!r}")
+
+
+SOURCES = (
+    SourceSpec(
+        name="beacons",
+        description="simulated range beacons (Yang 2007's set-up)",
+        opener=lambda rest: open_beacon_source("beacons", rest),
+        example="beacons:steps=120,seed=0",
+    ),
+    SourceSpec(
+        name="beacons-csv",
+        description="range readings from a CSV log",
+        opener=lambda rest: open_beacon_source("beacons-csv", rest),
+        example="beacons-csv:ranges.csv,layout=layout.json",
+    ),
+    SourceSpec(
+        name="beacons-udp",
+        description="live range readings over UDP",
+        opener=lambda rest: open_beacon_source("beacons-udp", rest),
+        example="beacons-udp:port=9870",
+    ),
+)

@@ -18,7 +18,7 @@ import numpy as np
 from engine.camera import Intrinsics
 from engine.errors import SourceError
 from engine.frames import Frame
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec
 
 DEFAULT_FPS = 30.0
 
@@ -83,3 +83,19 @@ class CameraSource(Source):
         if self._cap is not None:
             self._cap.release()
             self._cap = None
+
+
+def open_camera(rest: str) -> CameraSource:
+    """``camera:N`` (``camera`` alone is camera 0)."""
+    try:
+        index = int(rest or "0")
+    except ValueError:
+        msg = f"camera spec {'camera:' + rest!r}: expected camera:N with N an integer"
+        raise SourceError(msg) from None
+    return CameraSource(index)
+
+
+SOURCES = (
+    SourceSpec(name="camera", description="live webcam N", opener=open_camera,
+               example="camera:0"),
+)

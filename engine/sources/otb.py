@@ -22,7 +22,7 @@ from pathlib import Path
 from engine.camera import Intrinsics
 from engine.errors import SourceError
 from engine.frames import Frame
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec
 from engine.sources.images import read_color_bgr
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
@@ -176,3 +176,18 @@ class OtbSource(Source):
                 gt_box_xywh=box,
                 extras={"image_path": str(img_path)},
             )
+
+
+def _is_otb_folder(path: Path) -> bool:
+    return path.is_dir() and ((path / "img").is_dir() or (path / "imgs").is_dir())
+
+
+SOURCES = (
+    SourceSpec(
+        name="otb",
+        description="an OTB/MIL folder (img/ or imgs/)",
+        opener=OtbSource,
+        detect=_is_otb_folder,
+        example="otb_girl",
+    ),
+)

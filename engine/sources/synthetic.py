@@ -48,7 +48,7 @@ from typing import Any
 from engine.camera import Intrinsics
 from engine.errors import SourceError
 from engine.frames import Frame
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec, parse_options
 
 PATHS = ("rail", "pan", "handheld", "static")
 PRESENTER_MODES = ("walk", "still", "leave")
@@ -292,3 +292,13 @@ class SyntheticSource(Source):
     def frames(self) -> Iterator[Frame]:
         for i in range(len(self)):
             yield self.studio.frame(i)
+
+
+SOURCES = (
+    SourceSpec(
+        name="synthetic",
+        description="the built-in virtual studio",
+        opener=lambda rest: SyntheticSource.from_options(parse_options(rest)),
+        example="synthetic:frames=300,presenter=1,path=rail",
+    ),
+)

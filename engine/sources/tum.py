@@ -25,7 +25,7 @@ from engine.camera import Intrinsics, load_camera_json, tum_default_for
 from engine.errors import SourceError
 from engine.frames import Frame
 from engine.geometry import R_from_quat_xyzw, make_T, so3_exp, so3_log
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec
 from engine.sources.images import read_color_bgr, read_depth_m
 
 F64 = NDArray[np.float64]
@@ -343,3 +343,18 @@ class TumSource(Source):
                 gt_T_world_cam=None if gt is None else gt.copy(),
                 extras=extras,
             )
+
+
+def _is_tum_folder(path: Path) -> bool:
+    return path.is_dir() and (path / "rgb.txt").exists()
+
+
+SOURCES = (
+    SourceSpec(
+        name="tum",
+        description="a TUM RGB-D folder (rgb.txt)",
+        opener=TumSource,
+        detect=_is_tum_folder,
+        example="tum_fr1_xyz_37",
+    ),
+)

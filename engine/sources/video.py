@@ -19,9 +19,10 @@ import numpy as np
 from engine.camera import Intrinsics
 from engine.errors import SourceError
 from engine.frames import Frame
-from engine.sources.base import Source
+from engine.sources.base import Source, SourceSpec
 
 DEFAULT_FPS = 30.0
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
 
 
 def _open_capture(path: Path) -> cv2.VideoCapture:
@@ -99,3 +100,18 @@ class VideoSource(Source):
                 index += 1
         finally:
             cap.release()
+
+
+def _is_video_file(path: Path) -> bool:
+    return path.is_file() and path.suffix.lower() in VIDEO_SUFFIXES
+
+
+SOURCES = (
+    SourceSpec(
+        name="video",
+        description=f"a video file ({', '.join(VIDEO_SUFFIXES)})",
+        opener=VideoSource,
+        detect=_is_video_file,
+        example="take1.mp4",
+    ),
+)

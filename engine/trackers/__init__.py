@@ -1,43 +1,36 @@
 """Tracker registry.
 
 Every module in this package may define ``TRACKERS: tuple[TrackerSpec, ...]``; the registry
-discovers them, so adding a tracker means adding one module. Modules keep their heavy imports
-inside functions so discovery stays fast.
+(:class:`engine.registry.Registry`) discovers them, so adding a tracker means adding one module.
+Modules keep their heavy imports inside functions so discovery stays fast.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
-import pkgutil
-from functools import cache
+from collections.abc import Mapping
 from typing import Any
 
 from engine.errors import TrackerError
+from engine.registry import Registry, unknown_message
 from engine.trackers.base import TrackerSpec
 
 DEFAULT_TRACKER = "opencv-odometry"
 
+REGISTRY: Registry[TrackerSpec] = Registry(
+    "tracker", "TRACKERS", TrackerSpec, places=(__name__,), error=TrackerError
+)
 
-@cache
-def available_trackers() -> dict[str, TrackerSpec]:
+
+def available_trackers() -> Mapping[str, TrackerSpec]:
     """All registered trackers by name."""
-    specs: dict[str, TrackerSpec] = {}
-    for mod in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if mod.name.startswith("_") or mod.name == "base":
-            continue
-        module = importlib.import_module(f"{__name__}.{mod.name}")
-        for spec in getattr(module, "TRACKERS", ()):
-            if spec.name in specs:
-                raise TrackerError(f"tracker name {spec.name!r} registered twice ({mod.name})")
-            specs[spec.name] = spec
-    return specs
+    return REGISTRY.specs()
 
 
 def get_spec(name: str) -> TrackerSpec:
-    specs = available_trackers()
+    specs = available_trackers()  # looked up here so that tests can swap the registry
     if name not in specs:
-        raise TrackerError(f"unknown tracker {name!r}; available: {', '.join(sorted(specs))}")
+        raise TrackerError(unknown_message("tracker", name, specs))
     return specs[name]
 
 
