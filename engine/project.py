@@ -8,7 +8,7 @@ annotate, bundle-adjust). Layout::
     project.json.bak    the previous project.json (points at the previous revision)
     rev-0003/           the current revision, written completely before project.json
         camera.json         calibration (engine.camera format), optional
-        keyframes/          keyframe store (engine.dense.keyframes format), optional
+        keyframes/          keyframe store (engine.keyframes.store format), optional
         annotations.json    annotated points: observations per keyframe, 3D point
         presenter.json      presenter models slot (JSON objects by name)
         params.json         parameter groups (JSON objects by group name)
@@ -90,7 +90,7 @@ class Project:
 
     name: str = "studio"
     intrinsics: Intrinsics | None = None
-    keyframes: Any | None = None  # engine.dense.keyframes.KeyframeStore
+    keyframes: Any | None = None  # engine.keyframes.store.KeyframeStore
     annotations: list[AnnotatedPoint] = field(default_factory=list)
     presenter_models: dict[str, Any] = field(default_factory=dict)
     params: dict[str, Any] = field(default_factory=dict)
@@ -209,7 +209,7 @@ def open_project(folder: str | Path) -> Project:
             raise ProjectError(str(exc)) from None
     store = None
     if (data / "keyframes").exists():
-        from engine.dense.keyframes import KeyframeStore, KeyframeStoreError
+        from engine.keyframes.store import KeyframeStore, KeyframeStoreError
 
         try:
             store = KeyframeStore.load(data / "keyframes")

@@ -2,9 +2,9 @@
 
 Two keyframe panes side by side. Click a physical point in either pane: the point gets that
 observation and the editor predicts where it appears in the other keyframes (current poses +
-depth) and snaps the prediction by patch matching (:mod:`engine.annotate`). The suggestions
-show as dashed circles; Enter (or "Accept") confirms them, a click in a pane corrects the
-observation there. A table lists the points with their views and reprojection error.
+depth) and snaps the prediction by patch matching (:mod:`engine.keyframes.annotate`). The
+suggestions show as dashed circles; Enter (or "Accept") confirms them, a click in a pane
+corrects the observation there. A table lists the points with their views and reprojection error.
 
 Panes: wheel zooms about the cursor, right- or middle-drag pans, a crosshair follows the
 mouse and a magnifier (4x) shows the pixels around it. Keys: N new point, Enter accept
@@ -363,9 +363,10 @@ class AnnotationEditor(QWidget):
     def _suggest(self, pid: int, kf_id: int, uv: tuple[float, float]) -> None:
         """Predict the clicked point in every other keyframe (current poses + the clicked
         keyframe's depth) and snap it there by patch matching against the clicked keyframe
-        (perspective-corrected by the local affine map of :func:`engine.annotate.local_affine`).
+        (perspective-corrected by the local affine map of
+        :func:`engine.keyframes.annotate.local_affine`).
         Matching straight against the click avoids the drift of chained matches."""
-        from engine.annotate import predict_and_snap
+        from engine.keyframes.annotate import predict_and_snap
 
         assert self.store is not None
         pt = self.point(pid)

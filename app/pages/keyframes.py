@@ -38,9 +38,9 @@ from PySide6.QtWidgets import (
 
 from app.keyframe_jobs import JobThread
 from app.pages import PageSpec
-from engine.fusion import FusionParams
-from engine.keyframe_sweep import SweepParams
-from engine.sba import SBAParams
+from engine.keyframes.fusion import FusionParams
+from engine.keyframes.sba import SBAParams
+from engine.keyframes.sweep import SweepParams
 from widgets.annotation_editor import AnnotationEditor
 from widgets.param_form import ParamForm
 from widgets.source_picker import SourcePicker
@@ -306,7 +306,7 @@ class KeyframesPage(QWidget):
         self.strip.addItem(it)
 
     def _rebuild_strip(self) -> None:
-        from engine.keyframe_sweep import thumbnail
+        from engine.keyframes.sweep import thumbnail
 
         self.strip.clear()
         if self.store is None:
@@ -327,8 +327,6 @@ class KeyframesPage(QWidget):
                 self.strip.scrollToItem(self.strip.item(i))
 
     def delete_selected_keyframe(self) -> None:
-        from engine.keyframe_sweep import delete_keyframe
-
         kid = self.selected_keyframe()
         if kid is None or self.store is None:
             return
@@ -338,7 +336,7 @@ class KeyframesPage(QWidget):
         prj = self.project()
         for p in prj.annotations:
             p.observations_px.pop(kid, None)
-        self._set_store(delete_keyframe(self.store, kid), f"deleted keyframe {kid}")
+        self._set_store(self.store.without(kid), f"deleted keyframe {kid}")
 
     def retake_selected_keyframe(self) -> None:
         self.delete_selected_keyframe()
@@ -422,11 +420,9 @@ class KeyframesPage(QWidget):
             if result.cancelled:
                 self.ctx.log.warning("Fusion cancelled: keyframe depth unchanged")
             else:
-                from engine.keyframe_sweep import with_depths
-
                 self._show_fusion(result)
                 self._set_store(
-                    with_depths(self.store, result.depth_m),
+                    self.store.with_depths(result.depth_m),
                     f"depth fused: holes {result.hole_fraction_before:.4f} -> "
                     f"{result.hole_fraction_after:.4f}",
                 )
@@ -474,7 +470,7 @@ class KeyframesPage(QWidget):
 
     # ------------------------------------------------------------- recording
     def start_recording(self) -> None:
-        from engine.keyframe_sweep import record_sweep
+        from engine.keyframes.sweep import record_sweep
         from engine.sources import open_source
 
         params = self.sweep_form.params
@@ -494,7 +490,7 @@ class KeyframesPage(QWidget):
 
     # ---------------------------------------------------------------- fusion
     def start_fusion(self) -> None:
-        from engine.fusion import fuse_depth
+        from engine.keyframes.fusion import fuse_depth
 
         if self.recording is None or self.store is None:
             return
@@ -529,7 +525,7 @@ class KeyframesPage(QWidget):
 
     # ------------------------------------------------------------------- SBA
     def start_sba(self) -> None:
-        from engine.sba import bundle_adjust_store
+        from engine.keyframes.sba import bundle_adjust_store
 
         if self.store is None:
             return
@@ -573,8 +569,6 @@ class KeyframesPage(QWidget):
         self.revert_button.setEnabled(False)
 
     def apply_sba(self) -> None:
-        from engine.keyframe_sweep import with_poses
-
         if self.sba is None or self.store is None:
             return
         self.sba_backup = (self.store, {p.id: p.X_world for p in self.editor.points})
@@ -582,7 +576,7 @@ class KeyframesPage(QWidget):
         for p in prj.annotations:
             if p.id in self.sba.X_world_after:
                 p.X_world = self.sba.X_world_after[p.id].copy()
-        self._set_store(with_poses(self.store, self.sba.T_world_cam_after), "SBA applied")
+        self._set_store(self.store.with_poses(self.sba.T_world_cam_after), "SBA applied")
         self.editor.set_errors(self.sba.point_rmse_after_px)
         self.apply_button.setEnabled(False)
         self.revert_button.setEnabled(True)

@@ -158,22 +158,26 @@ def _rail_spec(cycles: float, cycle_s: float, presenter_cycles: float) -> str:
 
 
 def _sweep_store(points: int, kf_dist: float) -> Any:
-    from engine.dense.sweep import sweep
+    from engine.dense.params import DenseParams
+    from engine.keyframes.sweep import SweepParams, record_sweep
     from engine.sources import open_source
-    from engine.trackers.dense import DenseParams
 
     src = open_source(_rail_spec(1, SWEEP_CYCLE_S, 0))
-    res = sweep(src, DenseParams(n_points=points, kf_add_dist_m=kf_dist))
-    _log(f"sweep: {len(res.store)} keyframes from {res.frames} empty-studio frames "
+    res = record_sweep(
+        src,
+        SweepParams(kf_add_dist_m=kf_dist, max_kept_frames=0),
+        dense_params=DenseParams(n_points=points),
+    )
+    _log(f"sweep: {len(res.store)} keyframes from {res.frames_processed} empty-studio frames "
          f"({res.lost_frames} lost, {res.seconds:.1f} s)")
     return res
 
 
 def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
     from engine.sources import open_source
     from engine.trackers import create_tracker
-    from engine.trackers.dense import DenseParams
 
     spec = _rail_spec(args.cycles, args.cycle_s, args.presenter_cycles)
     src = open_source(spec)
@@ -260,7 +264,6 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
 def _ground_truth_store(store: Any) -> Any:
     """The sweep's keyframes with their true poses (the paper's bundle-adjusted keyframes):
     each keyframe image is found again in the sweep pass and given that frame's truth."""
-    from engine.dense.keyframes import Keyframe, KeyframeStore
     from engine.sources import open_source
 
     src = open_source(_rail_spec(1, SWEEP_CYCLE_S, 0))
@@ -279,10 +282,7 @@ def _ground_truth_store(store: Any) -> Any:
                 gray = cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY)
             if np.array_equal(gray, k.gray):
                 found[kid] = np.array(f.gt_T_world_cam)
-    return KeyframeStore(store.intrinsics, [
-        Keyframe(k.id, found.get(k.id, k.T_world_cam), k.gray, k.depth_m)
-        for k in store.keyframes if k.id in found
-    ])
+    return store.subset(found).with_poses(found)
 
 
 def _keyframe_counts(args: argparse.Namespace, store: Any) -> dict[str, Any]:
@@ -292,9 +292,9 @@ def _keyframe_counts(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     with their true poses (as the paper's bundle-adjusted ground-truth keyframes), which
     isolates the keyframe-switching error from the sweep's own pose error.
     """
+    from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
     from engine.sources import open_source
-    from engine.trackers.dense import DenseParams
 
     gt_store = _ground_truth_store(store)
     _log(f"keyframes: {len(gt_store)} of {len(store)} sweep keyframes matched to their truth")
@@ -341,7 +341,7 @@ def rss():
 from engine.camera import Intrinsics
 from engine.dense.tracking import DenseKeyframeTracker
 from engine.frames import Frame
-from engine.trackers.dense import DenseParams
+from engine.dense.params import DenseParams
 base = rss()
 folder = Path(sys.argv[2])
 intr = Intrinsics(**json.loads(sys.argv[3]))
@@ -442,7 +442,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if "real" not in skip:
         out["real"] = _real(args.points)
     sw = _sweep_store(args.points, args.kf_dist)
-    out["sweep"] = {"keyframes": len(sw.store), "frames": sw.frames, "lost": sw.lost_frames}
+    out["sweep"] = {
+        "keyframes": len(sw.store), "frames": sw.frames_processed, "lost": sw.lost_frames
+    }
     if "rail" not in skip:
         rail, speed = _rail(args, sw.store)
         out["rail"] = {k: v for k, v in rail.items() if not k.startswith("_")}

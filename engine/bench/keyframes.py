@@ -17,10 +17,19 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
+
+from engine.camera import Intrinsics, project
+from engine.geometry import invert, se3_exp
+from engine.keyframes.sba import Observation
+
+F64 = NDArray[np.float64]
 
 from engine.bench import BenchSpec
 
@@ -38,11 +47,86 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
 
 
+@dataclass(frozen=True)
+class SyntheticProblem:
+    """Generated SBA test case: true and perturbed poses, points and observations."""
+
+    intrinsics: Intrinsics
+    T_world_cam_true: dict[int, F64]
+    T_world_cam_noisy: dict[int, F64]
+    X_world_true: dict[int, F64]
+    observations: list[Observation]
+    depth_maps: dict[int, NDArray[np.float32]]
+
+
+def synthetic_problem(
+    n_keyframes: int = 30,
+    n_points: int = 40,
+    *,
+    seed: int = 0,
+    n_perturbed: int = 5,
+    err_m: float = 0.05,
+    err_deg: float = 1.5,
+    pixel_noise: float = 0.3,
+    depth_noise_rel: float = 0.003,
+    intrinsics: Intrinsics | None = None,
+) -> SyntheticProblem:
+    """Keyframes on a 3 m rail looking at a studio-sized point set; the last
+    ``n_perturbed`` keyframes get a growing pose error (drift at the end of a sweep, Fig. 11).
+    Also the test problem of ``tests/engine/test_sba.py``."""
+
+    rng = np.random.default_rng(seed)
+    intr = intrinsics or Intrinsics()
+    X = np.column_stack(
+        [
+            rng.uniform(-2.0, 2.0, n_points),
+            rng.uniform(-1.2, 0.8, n_points),
+            rng.uniform(3.0, 5.5, n_points),
+        ]
+    )
+    T_true, T_noisy = {}, {}
+    for i in range(n_keyframes):
+        s = i / max(1, n_keyframes - 1)
+        yaw = math.radians(-12.0 + 24.0 * s)
+        R = np.array(
+            [[math.cos(yaw), 0, math.sin(yaw)], [0, 1, 0], [-math.sin(yaw), 0, math.cos(yaw)]]
+        )
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = [-1.5 + 3.0 * s, 0.05 * math.sin(3 * s), 0.0]
+        T_true[i] = T
+        k = i - (n_keyframes - n_perturbed)
+        if k >= 0:
+            g = (k + 1) / n_perturbed
+            d = rng.normal(size=6)
+            d[:3] *= err_m * g / np.linalg.norm(d[:3])
+            d[3:] *= math.radians(err_deg) * g / np.linalg.norm(d[3:])
+            T_noisy[i] = T @ se3_exp(d)
+        else:
+            T_noisy[i] = T.copy()
+    obs, depths = [], {}
+    for i, T in T_true.items():
+        T_cw = invert(T)
+        pc = X @ T_cw[:3, :3].T + T_cw[:3, 3]
+        uv = project(intr, pc)
+        dm = np.zeros((intr.height, intr.width), np.float32)
+        for j in range(n_points):
+            u, v = uv[j] + rng.normal(scale=pixel_noise, size=2)
+            if pc[j, 2] > 0.1 and 1 <= u < intr.width - 2 and 1 <= v < intr.height - 2:
+                obs.append(Observation(j, i, float(u), float(v)))
+                # independent noise per depth pixel, as a sensor has
+                dm[round(v) - 1 : round(v) + 2, round(u) - 1 : round(u) + 2] = pc[j, 2] * (
+                    1.0 + depth_noise_rel * rng.normal(size=(3, 3))
+                )
+        depths[i] = dm
+    return SyntheticProblem(intr, T_true, T_noisy, {j: X[j] for j in range(n_points)}, obs, depths)
+
+
 def _bench_sba(args: argparse.Namespace) -> dict[str, Any]:
     import scipy.optimize  # noqa: F401  (import time is not solve time)
 
+    from engine.keyframes.sba import bundle_adjust
     from engine.progress import log
-    from engine.sba import bundle_adjust, synthetic_problem
 
     n_pert = min(5, args.sba_keyframes - 1)
     pr = synthetic_problem(
@@ -91,8 +175,8 @@ def _bench_sba(args: argparse.Namespace) -> dict[str, Any]:
 def _bench_fusion(args: argparse.Namespace) -> dict[str, Any]:
     import cv2
 
-    from engine.dense.keyframes import KeyframeStore
-    from engine.fusion import FusionParams, PosedFrame, fuse_depth
+    from engine.keyframes.fusion import FusionParams, PosedFrame, fuse_depth
+    from engine.keyframes.store import KeyframeStore
     from engine.progress import log
     from engine.sources.synthetic import SyntheticSource, config_from_options
 

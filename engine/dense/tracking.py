@@ -24,13 +24,13 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
 from engine.dense import photometric as ph
-from engine.dense.keyframes import Keyframe, KeyframeStore, KeyframeStoreError, same_camera
+from engine.dense.params import DenseParams
 from engine.dense.pyramid import gray_from_bgr
 from engine.errors import TrackerError
 from engine.frames import Frame
 from engine.geometry import invert, rotation_angle_rad, se3_exp, se3_log
+from engine.keyframes.store import Keyframe, KeyframeStore, KeyframeStoreError, same_camera
 from engine.trackers.base import Overlay, TrackResult, TrackState
-from engine.trackers.dense import DenseParams
 
 F64 = NDArray[np.float64]
 
@@ -323,19 +323,32 @@ class DenseIncrementalTracker(_DenseBase):
 
 
 class DenseKeyframeTracker(_DenseBase):
-    """Algorithm 3: track against the nearest keyframe (eq. (19)-(21)) of a store."""
+    """Algorithm 3: track against the nearest keyframe (eq. (19)-(21)) of a store.
+
+    Without a store (none given, no ``keyframes_dir``) it builds its keyframes online (sec.
+    6.1: Algorithms 2 and 3 alternating). ``extend_store=True`` keeps adding keyframes to a
+    given or loaded store too (a second sweep appends to the first); the tracker adds them to
+    that store object, so pass a copy (:meth:`KeyframeStore.copy`) to keep the original.
+    """
 
     name = "dense"
 
-    def __init__(self, params: DenseParams, store: KeyframeStore | None = None) -> None:
+    def __init__(
+        self,
+        params: DenseParams,
+        store: KeyframeStore | None = None,
+        *,
+        extend_store: bool = False,
+    ) -> None:
         self._given_store = store
+        self._extend_store = extend_store
         super().__init__(params)
 
     def reset(self) -> None:
         super().reset()
         self._store: KeyframeStore | None = self._given_store
         self._store_dir = ""
-        self._online = self._given_store is None
+        self._online = self._given_store is None or self._extend_store
         self._refs: dict[int, ph.Reference] = {}
         self._kf_id: int | None = None
         self._started = False
@@ -350,7 +363,7 @@ class DenseKeyframeTracker(_DenseBase):
     def _load_store(self, folder: str) -> None:
         self._store = KeyframeStore.load(Path(folder))
         self._store_dir = folder
-        self._online = False
+        self._online = self._extend_store
         self._refs = {}
 
     def _reference(self, kf: Keyframe) -> ph.Reference:

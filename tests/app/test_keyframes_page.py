@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt
 
-from engine.keyframe_sweep import SweepParams, record_sweep
+from engine.keyframes.sweep import SweepParams, record_sweep
 from engine.project import new_project
 from engine.sources import open_source
 

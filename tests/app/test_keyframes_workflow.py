@@ -15,11 +15,11 @@ import cv2
 import numpy as np
 from PySide6.QtCore import Qt
 
-from engine.fusion import FusionParams
 from engine.geometry import se3_exp
-from engine.keyframe_sweep import SweepParams, with_poses
+from engine.keyframes.depth_sample import depth_at
+from engine.keyframes.fusion import FusionParams
+from engine.keyframes.sweep import SweepParams
 from engine.project import new_project, open_project
-from engine.sba import depth_at
 from engine.sources import open_source
 
 SPEC = "synthetic:frames=120,width=320,height=240,path=rail,cycle_s=8,dropouts=1"
@@ -109,7 +109,7 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
         d[:3] *= 0.01 * n / np.linalg.norm(d[:3])  # 1, 2, 3 cm
         d[3:] *= np.radians(0.3 * n) / np.linalg.norm(d[3:])
         bad[kid] = tracked[kid] @ se3_exp(d)
-    page._set_store(with_poses(store, bad), "test: injected pose error")
+    page._set_store(store.with_poses(bad), "test: injected pose error")
     store = ctx.project.keyframes
 
     # ---- annotate by clicks, as an operator would: in every third keyframe and in each
@@ -181,7 +181,7 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
         f"{sba.rmse_before_px:.2f} -> {sba.rmse_after_px:.2f} px"
     )
     # click seeds 1-11: 93.0-96.8 % (median 95 %); 86-94 % before the tight robust scales
-    # of engine.sba (0.1 px, 0.1 depth sigma) down-weighted the few snaps 0.2-0.8 px off
+    # of engine.keyframes.sba (0.1 px, 0.1 depth sigma) down-weighted the few snaps 0.2-0.8 px off
     assert reduction >= 0.9, f"SBA removed only {100 * reduction:.1f} % of the pose error"
     page.tabs.setCurrentIndex(0)
     _grab(page, "keyframes_sba.png")
@@ -201,8 +201,8 @@ def test_keyframe_workflow(qtbot, ctx, tmp_path: Path) -> None:  # type: ignore[
     prj = open_project(tmp_path / "studio")
     assert len(prj.keyframes) == len(store)
     assert len(prj.annotations) == len(pts)
+    from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
-    from engine.trackers.dense import DenseParams
 
     tracker = DenseKeyframeTracker(DenseParams(), prj.keyframes)
     errs = []

@@ -10,7 +10,7 @@ import pytest
 
 from app.viewer3d import StudioViewer, export_cloud_ply, export_mesh_ply, keyframe_cloud
 from engine.camera import Intrinsics
-from engine.dense.keyframes import KeyframeStore
+from engine.keyframes.store import KeyframeStore
 
 
 @pytest.fixture(scope="module")

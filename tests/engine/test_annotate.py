@@ -5,8 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from engine.annotate import point_from_click, predict, snap
 from engine.geometry import se3_exp
+from engine.keyframes.annotate import point_from_click, predict, snap
 from engine.sources import open_source
 
 

@@ -9,16 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.dense.keyframes import (
+from engine.dense.params import DenseParams
+from engine.dense.testscene import PlaneScene, small_intrinsics
+from engine.geometry import R_from_pan_tilt_roll_deg, make_T, se3_exp
+from engine.keyframes.store import (
     INDEX_NAME,
     KeyframeStore,
     KeyframeStoreError,
     frustum_metric,
     frustum_test_points,
 )
-from engine.dense.sweep import sweep
-from engine.dense.testscene import PlaneScene, small_intrinsics
-from engine.geometry import R_from_pan_tilt_roll_deg, make_T, se3_exp
+from engine.keyframes.sweep import SweepParams, record_sweep
 from engine.sources.base import Source
 from engine.trackers import create_tracker
 from engine.trackers.base import TrackState
@@ -126,8 +127,12 @@ def test_sweep_builds_a_store_that_dense_tracks_against(tmp_path: Path) -> None:
         return make_T(np.eye(3), [0.01 * i, 0.0, 0.0])
 
     frames = [scene.frame(i, pose(i)) for i in range(0, 24)]
-    res = sweep(_ListSource(frames), create_tracker("dense", n_points=1024).params.__class__(
-        n_points=1024, kf_add_dist_m=0.08))
+    res = record_sweep(
+        _ListSource(frames),
+        SweepParams(kf_add_dist_m=0.08, max_kept_frames=0),
+        dense_params=DenseParams(n_points=1024),
+    )
+    assert res.frames == ()  # none kept
     assert len(res.store) >= 3
     res.store.save(tmp_path / "kf")
     tr = create_tracker("dense", n_points=1024, keyframes_dir=str(tmp_path / "kf"))
@@ -145,3 +150,54 @@ def test_store_for_another_camera_is_refused(tmp_path: Path) -> None:
     scene = PlaneScene(other, room_scale=0.45)
     with pytest.raises(KeyframeStoreError, match="different camera"):
         tr.track(scene.frame(0, np.eye(4)))
+
+
+def test_store_edits_return_new_stores() -> None:
+    st = _store()
+    poses = [k.T_world_cam.copy() for k in st.keyframes]
+    depth1 = st.by_id(1).depth_m
+    moved = st.with_poses({1: np.eye(4)})
+    fused = st.with_depths({1: np.zeros_like(depth1)})
+    fewer = st.without(0)
+    np.testing.assert_array_equal(moved.by_id(1).T_world_cam, np.eye(4))
+    assert not fused.by_id(1).depth_m.any()
+    assert [k.id for k in fewer.keyframes] == [1, 2]
+    # the original is untouched by all three
+    assert len(st) == 3
+    assert st.by_id(1).depth_m is depth1
+    for k, T in zip(st.keyframes, poses, strict=True):
+        np.testing.assert_array_equal(k.T_world_cam, T)
+    with pytest.raises(KeyError):
+        st.without(7)
+    copy = st.copy()
+    copy.add(np.eye(4), st.by_id(0).gray, depth1)
+    assert len(copy) == 4
+    assert len(st) == 3
+
+
+def test_tracker_extends_a_given_store_only_when_asked() -> None:
+    from engine.dense.tracking import DenseKeyframeTracker
+
+    scene = PlaneScene(small_intrinsics(), room_scale=0.45)
+
+    def pose(i: int) -> np.ndarray:
+        return make_T(np.eye(3), [0.02 * i, 0.0, 0.0])
+
+    base = record_sweep(
+        _ListSource([scene.frame(i, pose(i)) for i in range(3)]),
+        SweepParams(kf_add_dist_m=0.5, max_kept_frames=0),
+        dense_params=DenseParams(n_points=1024),
+    ).store
+    assert len(base) == 1
+    later = [scene.frame(i, pose(i)) for i in range(0, 12)]
+    params = DenseParams(n_points=1024, kf_add_dist_m=0.05)
+    fixed = DenseKeyframeTracker(params, base.copy())
+    growing = DenseKeyframeTracker(params, base.copy(), extend_store=True)
+    for f in later:
+        fixed.track(f)
+        growing.track(f)
+    assert fixed.store is not None
+    assert len(fixed.store) == 1
+    assert growing.store is not None
+    assert len(growing.store) >= 3
+    assert len(base) == 1

@@ -7,12 +7,12 @@ import dataclasses
 import numpy as np
 import pytest
 
+from engine.dense.params import DenseParams
 from engine.dense.testscene import PlaneScene, Quad, small_intrinsics
 from engine.frames import Frame
 from engine.geometry import invert, rotation_angle_rad, se3_exp
 from engine.trackers import create_tracker, get_spec
 from engine.trackers.base import TrackState
-from engine.trackers.dense import DenseParams
 
 N_POINTS = 2048
 

@@ -6,13 +6,13 @@ import cv2
 import numpy as np
 import pytest
 
-from engine.dense.keyframes import KeyframeStore
-from engine.fusion import (
+from engine.keyframes.fusion import (
     FusionParams,
     PosedFrame,
     SourceFrames,
     fuse_depth,
 )
+from engine.keyframes.store import KeyframeStore
 from engine.sources import open_source
 
 
@@ -110,7 +110,7 @@ def test_source_frames_and_median_window() -> None:
     assert res.frames_used == 5
     assert res.stats[0].frames == 5
     # the median window (Fig. 10): an outlier far from the median is ignored
-    from engine.fusion_kernels import robust_inverse_depth
+    from engine.keyframes.fusion_kernels import robust_inverse_depth
 
     buf = np.zeros((3, 4), np.float32)
     buf[0] = [0.50, 0.9, 0.51, 0.49]

@@ -293,7 +293,7 @@ def test_other_json_files_nested_too_deeply_give_clear_errors(tmp_path, loader):
         target = tmp_path
         (tmp_path / "model.json").write_bytes(DEEP_JSON)
     elif loader == "keyframe_store":
-        from engine.dense.keyframes import KeyframeStore
+        from engine.keyframes.store import KeyframeStore
 
         load = KeyframeStore.load
         target = tmp_path

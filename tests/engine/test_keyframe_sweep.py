@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from engine.errors import ParamsError
-from engine.keyframe_sweep import SweepParams, delete_keyframe, record_sweep, with_poses
+from engine.keyframes.sweep import SweepParams, record_sweep
 from engine.sources import open_source
 
 
@@ -42,9 +42,9 @@ def test_record_append_delete() -> None:
     assert len(rec2.store) > len(rec.store)
     assert kf_ids <= {k.id for k in rec2.store.keyframes}
     assert len(rec.store) == len(kf_ids)  # the first store is unchanged
-    smaller = delete_keyframe(rec2.store, max(kf_ids))
+    smaller = rec2.store.without(max(kf_ids))
     assert len(smaller) == len(rec2.store) - 1
-    moved = with_poses(smaller, {0: np.eye(4)})
+    moved = smaller.with_poses({0: np.eye(4)})
     np.testing.assert_array_equal(moved.by_id(0).T_world_cam, np.eye(4))
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from engine.camera import Intrinsics
-from engine.dense.keyframes import KeyframeStore
+from engine.keyframes.store import KeyframeStore
 from engine.project import AnnotatedPoint, Project, ProjectError, open_project
 
 

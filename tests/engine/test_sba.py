@@ -7,16 +7,16 @@ import dataclasses
 import numpy as np
 import pytest
 
+from engine.bench.keyframes import synthetic_problem
 from engine.camera import TUM_DEFAULTS
-from engine.project import AnnotatedPoint
-from engine.sba import (
+from engine.keyframes.sba import (
     Observation,
     SBAError,
     SBAParams,
     bundle_adjust,
     reprojection_errors,
-    synthetic_problem,
 )
+from engine.project import AnnotatedPoint
 
 
 def _err(T: dict, T_true: dict, ids) -> float:  # type: ignore[no-untyped-def]

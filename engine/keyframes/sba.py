@@ -19,6 +19,8 @@ Unknowns: the poses ``T_cam_world`` of every annotated keyframe except the gauge
 Both go through a robust loss (Cauchy by default) by iteratively reweighted least squares,
 each round solved by ``scipy.optimize.least_squares`` with a block-sparse Jacobian pattern
 (``jac_sparsity``): each residual depends on one pose (6 columns) and one point (3 columns).
+The residuals and that pattern are :mod:`engine.keyframes.sba_residuals`; this module checks
+the configuration, sets the problem up and solves it.
 The loss scales are tight (0.1 px, 0.1 depth sigma): snapped annotations are mostly good to
 ~0.05 px, and the few off by 0.2-0.8 px (a patch matched a little off, a depth sample on a
 fusion artefact) would otherwise pull the end of a long sweep by millimetres. Where the
@@ -33,6 +35,7 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +43,19 @@ from numpy.typing import NDArray
 from engine.camera import Intrinsics, backproject, project
 from engine.errors import StudioTrackError
 from engine.geometry import invert
+from engine.keyframes.depth_sample import depth_at, depth_plane
+from engine.keyframes.sba_residuals import (
+    SBAProblem,
+    jacobian_sparsity,
+    pixel_errors,
+    residuals,
+    robust_weight,
+    unpack,
+)
+from engine.keyframes.store import KeyframeStore
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
 
 F64 = NDArray[np.float64]
 
@@ -187,104 +203,25 @@ class SBAResult:
     message: str
 
 
-def _rotvec_to_R(r: F64) -> F64:
-    """Rodrigues for an (N, 3) array of rotation vectors -> (N, 3, 3)."""
-    theta = np.linalg.norm(r, axis=1)
-    small = theta < 1e-8
-    safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0, np.sin(theta) / safe)
-    b = np.where(small, 0.5, (1.0 - np.cos(theta)) / (safe * safe))
-    n = r.shape[0]
-    W = np.zeros((n, 3, 3))
-    W[:, 0, 1], W[:, 0, 2] = -r[:, 2], r[:, 1]
-    W[:, 1, 0], W[:, 1, 2] = r[:, 2], -r[:, 0]
-    W[:, 2, 0], W[:, 2, 1] = -r[:, 1], r[:, 0]
-    return np.eye(3)[None] + a[:, None, None] * W + b[:, None, None] * (W @ W)
+class AnnotatedPointLike(Protocol):
+    """An annotated point (:class:`engine.project.AnnotatedPoint`): pixel per keyframe id
+    and, once adjusted, its 3D position."""
+
+    @property
+    def id(self) -> int: ...
+    @property
+    def observations_px(self) -> Mapping[int, tuple[float, float]]: ...
+    @property
+    def X_world(self) -> F64 | None: ...
 
 
-def _robust_weight(e: F64, loss: str, scale: float) -> F64:
-    """IRLS weight w(e) = rho'(e^2) of scipy's loss functions at scale ``scale``."""
-    z = (e / scale) ** 2
-    if loss == "huber":
-        return np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1e-300)))
-    if loss == "soft_l1":
-        return 1.0 / np.sqrt(1.0 + z)
-    if loss == "cauchy":
-        return 1.0 / (1.0 + z)
-    if loss == "arctan":
-        return 1.0 / (1.0 + z * z)
-    return np.ones_like(e)
-
-
-def collect_observations(points: Sequence[object]) -> list[Observation]:
-    """Observations of :class:`engine.project.AnnotatedPoint` s (``observations_px``)."""
+def collect_observations(points: Sequence[AnnotatedPointLike]) -> list[Observation]:
+    """Observations of annotated points (``observations_px``)."""
     obs = []
     for p in points:
-        for kf_id, (u, v) in sorted(p.observations_px.items()):  # type: ignore[attr-defined]
-            obs.append(Observation(int(p.id), int(kf_id), float(u), float(v)))  # type: ignore[attr-defined]
+        for kf_id, (u, v) in sorted(p.observations_px.items()):
+            obs.append(Observation(int(p.id), int(kf_id), float(u), float(v)))
     return obs
-
-
-def depth_at(
-    depth_m: NDArray[np.floating],
-    u: float,
-    v: float,
-    radius: int = 1,
-    max_rel_spread: float = math.inf,
-) -> float:
-    """Median valid depth in a (2r+1)^2 window around the nearest pixel; NaN if none, or if
-    the window's depths spread more than ``max_rel_spread`` x median (a depth edge, where
-    the pixel may belong to either surface)."""
-    h, w = depth_m.shape
-    iu, iv = round(u), round(v)
-    if not (0 <= iu < w and 0 <= iv < h):
-        return math.nan
-    win = depth_m[max(0, iv - radius) : iv + radius + 1, max(0, iu - radius) : iu + radius + 1]
-    vals = win[np.isfinite(win) & (win > 0)]
-    if not vals.size:
-        return math.nan
-    med = float(np.median(vals))
-    if float(vals.max() - vals.min()) > max_rel_spread * med:
-        return math.nan
-    return med
-
-
-def depth_plane(
-    depth_m: NDArray[np.floating],
-    u: float,
-    v: float,
-    radius: int = 2,
-    max_rel_spread: float = math.inf,
-) -> tuple[float, float]:
-    """Depth at the sub-pixel position (u, v) and its local noise: a plane
-    ``z = a + b (u' - u) + c (v' - v)`` fitted to the valid depths of the (2r+1)^2 window
-    around the nearest pixel, evaluated at (u, v); the noise is the fit's RMS residual.
-
-    Unlike :func:`depth_at` (the window median at the nearest pixel) this has no bias of up to
-    half a pixel times the depth gradient on slanted surfaces (floors and walls seen at a
-    grazing angle), which at studio distances is centimetres. (NaN, NaN) where the window has
-    fewer than 6 valid depths or spreads more than ``max_rel_spread`` x median (a depth
-    edge)."""
-    h, w = depth_m.shape
-    iu, iv = round(u), round(v)
-    if not (0 <= iu < w and 0 <= iv < h):
-        return math.nan, math.nan
-    u0, u1 = max(0, iu - radius), min(w, iu + radius + 1)
-    v0, v1 = max(0, iv - radius), min(h, iv + radius + 1)
-    win = np.asarray(depth_m[v0:v1, u0:u1], dtype=np.float64)
-    vv, uu = np.mgrid[v0:v1, u0:u1]
-    ok = np.isfinite(win) & (win > 0)
-    if ok.sum() < 6:
-        return math.nan, math.nan
-    z = win[ok]
-    med = float(np.median(z))
-    if float(z.max() - z.min()) > max_rel_spread * med:
-        return math.nan, math.nan
-    A = np.column_stack([np.ones(z.size), uu[ok] - u, vv[ok] - v])
-    coef, *_ = np.linalg.lstsq(A, z, rcond=None)
-    res = z - A @ coef
-    dof = max(1, z.size - 3)
-    return float(coef[0]), float(math.sqrt(float(res @ res) / dof))
 
 
 def check_configuration(
@@ -416,6 +353,142 @@ def _triangulate(
     return X[:3] / X[3]
 
 
+def _problem(
+    intr: Intrinsics,
+    T_world_cam: Mapping[int, F64],
+    use: Sequence[Observation],
+    adjusted: Sequence[int],
+    free: Sequence[int],
+    depth_maps: Mapping[int, NDArray[np.floating]] | None,
+    p: SBAParams,
+) -> SBAProblem:
+    """Arrays of the least-squares problem; the unknowns are left-multiplied deltas on each
+    keyframe's fixed reference (its tracked T_cam_world)."""
+    free_idx = {k: i for i, k in enumerate(free)}
+    pt_ids = sorted({o.point_id for o in use})
+    pt_idx = {pid: i for i, pid in enumerate(pt_ids)}
+    T_cw0 = {k: invert(np.asarray(T_world_cam[k], dtype=np.float64)) for k in adjusted}
+    kf_row = {k: i for i, k in enumerate(adjusted)}
+    # depth term: the keyframe depth at the sub-pixel observation (local plane fit, no
+    # half-pixel bias), weighted by a noise model: sensor noise depth_sigma_rel x z combined
+    # with the depth map's own local noise (the plane fit's residual)
+    z_obs = np.full(len(use), np.nan)
+    z_noise = np.zeros(len(use))
+    if p.use_depth and depth_maps is not None:
+        for i, o in enumerate(use):
+            if o.kf_id in depth_maps:
+                z_obs[i], z_noise[i] = depth_plane(
+                    depth_maps[o.kf_id], o.u, o.v, 1, p.depth_edge_rel
+                )
+    has_z = np.isfinite(z_obs)
+    use_prior = p.pose_prior_m > 0 and p.pose_prior_deg > 0  # both or none
+    return SBAProblem(
+        intrinsics=intr,
+        adjusted=tuple(adjusted),
+        free=tuple(free),
+        point_ids=tuple(pt_ids),
+        R0=np.array([T_cw0[k][:3, :3] for k in adjusted]),
+        t0_cw=np.array([T_cw0[k][:3, 3] for k in adjusted]),
+        free_rows=np.array([kf_row[k] for k in free], dtype=np.int64),
+        o_kf=np.array([kf_row[o.kf_id] for o in use]),
+        o_free=np.array([free_idx.get(o.kf_id, -1) for o in use]),
+        o_pt=np.array([pt_idx[o.point_id] for o in use]),
+        uv=np.array([[o.u, o.v] for o in use]),
+        z_idx=np.nonzero(has_z)[0],
+        z_obs=z_obs,
+        sigma_z=np.hypot(p.depth_sigma_rel * z_obs[has_z], z_noise[has_z]),
+        prior_w=np.array(
+            [1.0 / p.pose_prior_m] * 3 + [1.0 / math.radians(p.pose_prior_deg)] * 3
+            if use_prior
+            else [0.0] * 6
+        ),
+        n_prior=len(free) if use_prior else 0,
+    )
+
+
+def _refine_points(pb: SBAProblem, x0: F64, jac: csr_matrix, p: SBAParams) -> F64:
+    """The tracked poses with the best points for them (points-only refinement): the
+    "before" state of the result."""
+    from scipy.optimize import least_squares
+
+    n_f = 6 * pb.n_free
+    pts_cols = np.arange(n_f, pb.n_variables)
+
+    def res_points(xp: F64) -> F64:
+        x = x0.copy()
+        x[n_f:] = xp
+        return residuals(pb, x)
+
+    pre = least_squares(
+        res_points,
+        x0[n_f:],
+        jac_sparsity=jac[:, pts_cols],
+        method="trf",
+        max_nfev=p.max_nfev,
+    )
+    x_before = x0.copy()
+    x_before[n_f:] = pre.x
+    return x_before
+
+
+def _solve_irls(
+    pb: SBAProblem, x_start: F64, jac: csr_matrix, p: SBAParams
+) -> tuple[F64, int, str]:
+    """Robust loss by iteratively reweighted least squares; (x, evaluations, message).
+
+    scipy's robust losses with the sparse (lsmr) trust-region solver converge slowly here,
+    while each reweighted linear problem converges in a few Gauss-Newton steps. Weights are
+    per observation (pixel pair together) from the previous solution, Huber/Cauchy/soft-L1
+    weight functions.
+    """
+    from scipy.optimize import least_squares
+
+    n_res, n_obs, n_z = pb.n_residuals, pb.n_obs, int(pb.z_idx.size)
+    w_sqrt = np.ones(n_res)
+    x_cur = x_start
+    nfev = 0
+    sol = None
+    for _ in range(1 if p.loss == "linear" else 4):
+
+        def weighted(x: F64, w: F64 = w_sqrt) -> F64:
+            return residuals(pb, x) * w
+
+        sol = least_squares(
+            weighted, x_cur, jac_sparsity=jac, method="trf", max_nfev=p.max_nfev, x_scale=1.0
+        )
+        x_cur, nfev = sol.x, nfev + int(sol.nfev)
+        if p.loss == "linear":
+            break
+        r = residuals(pb, x_cur)
+        e_px = np.repeat(np.linalg.norm(r[: 2 * n_obs].reshape(-1, 2), axis=1), 2)
+        r_z = np.abs(r[2 * n_obs :])
+        s_px, s_z = p.loss_scale_px, p.depth_loss_scale
+        if p.robust_k > 0:
+            # scales follow the residuals' robust spread (the median of a 2D Gaussian
+            # residual's norm is 1.177 sigma, of a 1D one's magnitude 0.674 sigma)
+            s_px = max(s_px, p.robust_k * float(np.median(e_px)) / 1.177)
+            if n_z:
+                s_z = max(s_z, p.robust_k * float(np.median(r_z[:n_z])) / 0.674)
+        w_px = robust_weight(e_px, p.loss, s_px)
+        w_z = robust_weight(r_z, p.loss, s_z)
+        w_new = np.sqrt(np.concatenate([w_px, w_z]))
+        if pb.n_prior:
+            w_new[n_res - 6 * pb.n_prior :] = 1.0  # the pose prior is not an outlier candidate
+        if np.allclose(w_new, w_sqrt, atol=1e-3):
+            break
+        w_sqrt = w_new
+    assert sol is not None
+    return np.asarray(sol.x), nfev, str(sol.message)
+
+
+def _rms(e: F64) -> float:
+    return float(np.sqrt(np.mean(e * e))) if e.size else 0.0
+
+
+def _rms_by(e: F64, key: NDArray[np.int_], ids: Sequence[int]) -> dict[int, float]:
+    return {k: _rms(e[key == i]) for i, k in enumerate(ids)}
+
+
 def bundle_adjust(
     intr: Intrinsics,
     T_world_cam: Mapping[int, F64],
@@ -430,9 +503,6 @@ def bundle_adjust(
     """Refine keyframe poses and 3D points; the gauge keyframe (default: lowest id) is fixed,
     and so are ``fixed_ids`` (keyframes the operator trusts, e.g. the start of the sweep: the
     paper's SBA removes "the small global error at the end of the trajectory")."""
-    from scipy.optimize import least_squares
-    from scipy.sparse import coo_matrix
-
     p = params or SBAParams()
     t0 = time.perf_counter()
     kf_ids = sorted(T_world_cam)
@@ -444,167 +514,18 @@ def bundle_adjust(
     )
     fixed = {gauge, *(int(k) for k in fixed_ids)}
     free = [k for k in adjusted if k not in fixed]
-    free_idx = {k: i for i, k in enumerate(free)}
-    pt_ids = sorted({o.point_id for o in use})
-    pt_idx = {pid: i for i, pid in enumerate(pt_ids)}
+    pb = _problem(intr, T_world_cam, use, adjusted, free, depth_maps, p)
     X0 = initial_points(intr, T_world_cam, use, depth_maps, points_init)
-    n_f, n_p = len(free), len(pt_ids)
+    jac = jacobian_sparsity(pb)
+    x0 = np.concatenate(
+        [np.zeros(6 * pb.n_free), np.array([X0[pid] for pid in pb.point_ids]).ravel()]
+    )
+    x_before = _refine_points(pb, x0, jac, p)
+    x_after, nfev, message = _solve_irls(pb, x_before, jac, p)
 
-    # fixed per-keyframe reference (initial T_cam_world); unknowns are left-multiplied deltas
-    T_cw0 = {k: invert(np.asarray(T_world_cam[k], dtype=np.float64)) for k in adjusted}
-    R0 = np.array([T_cw0[k][:3, :3] for k in adjusted])
-    t0v = np.array([T_cw0[k][:3, 3] for k in adjusted])
+    e_b, e_a = pixel_errors(pb, x_before), pixel_errors(pb, x_after)
+    R, t, X = unpack(pb, x_after)
     kf_row = {k: i for i, k in enumerate(adjusted)}
-    o_kf = np.array([kf_row[o.kf_id] for o in use])
-    o_free = np.array([free_idx.get(o.kf_id, -1) for o in use])
-    o_pt = np.array([pt_idx[o.point_id] for o in use])
-    uv = np.array([[o.u, o.v] for o in use])
-    # depth term: the keyframe depth at the sub-pixel observation (local plane fit, no
-    # half-pixel bias), weighted by a noise model: sensor noise depth_sigma_rel x z combined
-    # with the depth map's own local noise (the plane fit's residual)
-    z_obs = np.full(len(use), np.nan)
-    z_noise = np.zeros(len(use))
-    if p.use_depth and depth_maps is not None:
-        for i, o in enumerate(use):
-            if o.kf_id in depth_maps:
-                z_obs[i], z_noise[i] = depth_plane(
-                    depth_maps[o.kf_id], o.u, o.v, 1, p.depth_edge_rel
-                )
-    has_z = np.isfinite(z_obs)
-    z_idx = np.nonzero(has_z)[0]
-    sigma_z = np.hypot(p.depth_sigma_rel * z_obs[has_z], z_noise[has_z])
-
-    def unpack(x: F64) -> tuple[F64, F64, F64]:
-        poses = x[: 6 * n_f].reshape(n_f, 6)
-        X = x[6 * n_f :].reshape(n_p, 3)
-        dR = np.repeat(np.eye(3)[None], len(adjusted), axis=0)
-        dt = np.zeros((len(adjusted), 3))
-        if n_f:
-            rows = np.array([kf_row[k] for k in free])
-            dR[rows] = _rotvec_to_R(poses[:, 3:])
-            dt[rows] = poses[:, :3]
-        R = dR @ R0  # T_cw = [dR | dt] T_cw0
-        t = np.einsum("nij,nj->ni", dR, t0v) + dt
-        return R, t, X
-
-    def residuals(x: F64, pose_mask: bool = True) -> F64:
-        R, t, X = unpack(x)
-        p_cam = np.einsum("nij,nj->ni", R[o_kf], X[o_pt]) + t[o_kf]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            pix = project(intr, p_cam)  # eq. (2)-(4)
-        r_px = np.nan_to_num(pix - uv, nan=1e3).ravel()
-        parts = [r_px]
-        if z_idx.size:
-            parts.append((p_cam[z_idx, 2] - z_obs[z_idx]) / sigma_z)
-        if n_prior:
-            # dt of T_cw = [dR | dt] T_cw0 is the camera-centre change (C = C0 - R^T dt)
-            poses = x[: 6 * n_f].reshape(n_f, 6)
-            parts.append((poses[:, :3] * prior_w[:3]).ravel())
-            parts.append((poses[:, 3:] * prior_w[3:]).ravel())
-        return np.concatenate(parts)
-
-    use_prior = p.pose_prior_m > 0 and p.pose_prior_deg > 0  # both or none
-    n_prior = n_f if use_prior else 0
-    prior_w = np.array(
-        [1.0 / p.pose_prior_m] * 3 + [1.0 / math.radians(p.pose_prior_deg)] * 3
-        if use_prior
-        else [0.0] * 6
-    )
-    n_res = 2 * len(use) + int(z_idx.size) + 6 * n_prior
-    n_var = 6 * n_f + 3 * n_p
-    # block sparsity: residual row -> its keyframe's 6 pose columns and its point's 3 columns
-    row_obs = np.concatenate([np.repeat(np.arange(len(use)), 2), z_idx])
-    rows_all = np.arange(row_obs.size)
-    rr, cc = [], []
-    pf = o_free[row_obs]
-    has_pose = pf >= 0
-    for j in range(6):
-        rr.append(rows_all[has_pose])
-        cc.append(6 * pf[has_pose] + j)
-    for j in range(3):
-        rr.append(rows_all)
-        cc.append(6 * n_f + 3 * o_pt[row_obs] + j)
-    r0 = 2 * len(use) + int(z_idx.size)
-    for j in range(3):  # prior rows: position block then rotation block, per free keyframe
-        rr.append(r0 + 3 * np.arange(n_prior) + j)
-        cc.append(6 * np.arange(n_prior) + j)
-        rr.append(r0 + 3 * n_prior + 3 * np.arange(n_prior) + j)
-        cc.append(6 * np.arange(n_prior) + 3 + j)
-    A = coo_matrix(
-        (np.ones(sum(len(r) for r in rr), np.int8), (np.concatenate(rr), np.concatenate(cc))),
-        shape=(n_res, n_var),
-    )
-    A_csr = A.tocsr()
-    x0 = np.concatenate([np.zeros(6 * n_f), np.array([X0[pid] for pid in pt_ids]).ravel()])
-
-    # "before": the tracked poses with the best points for them (points-only refinement)
-    pts_cols = np.arange(6 * n_f, n_var)
-
-    def res_points(xp: F64) -> F64:
-        x = x0.copy()
-        x[6 * n_f :] = xp
-        return residuals(x)
-
-    pre = least_squares(
-        res_points,
-        x0[6 * n_f :],
-        jac_sparsity=A_csr[:, pts_cols],
-        method="trf",
-        max_nfev=p.max_nfev,
-    )
-    x_before = x0.copy()
-    x_before[6 * n_f :] = pre.x
-    # Robust loss by iteratively reweighted least squares: scipy's robust losses with the
-    # sparse (lsmr) trust-region solver converge slowly here, while each reweighted linear
-    # problem converges in a few Gauss-Newton steps. Weights are per observation (pixel pair
-    # together) from the previous solution, Huber/Cauchy/soft-L1 weight functions.
-    w_sqrt = np.ones(n_res)
-    x_cur = x_before
-    nfev = 0
-    sol = None
-    for _ in range(1 if p.loss == "linear" else 4):
-
-        def weighted(x: F64, w: F64 = w_sqrt) -> F64:
-            return residuals(x) * w
-
-        sol = least_squares(
-            weighted, x_cur, jac_sparsity=A_csr, method="trf", max_nfev=p.max_nfev, x_scale=1.0
-        )
-        x_cur, nfev = sol.x, nfev + int(sol.nfev)
-        if p.loss == "linear":
-            break
-        r = residuals(x_cur)
-        e_px = np.repeat(np.linalg.norm(r[: 2 * len(use)].reshape(-1, 2), axis=1), 2)
-        r_z = np.abs(r[2 * len(use) :])
-        s_px, s_z = p.loss_scale_px, p.depth_loss_scale
-        if p.robust_k > 0:
-            # scales follow the residuals' robust spread (the median of a 2D Gaussian
-            # residual's norm is 1.177 sigma, of a 1D one's magnitude 0.674 sigma)
-            s_px = max(s_px, p.robust_k * float(np.median(e_px)) / 1.177)
-            if z_idx.size:
-                s_z = max(s_z, p.robust_k * float(np.median(r_z[: z_idx.size])) / 0.674)
-        w_px = _robust_weight(e_px, p.loss, s_px)
-        w_z = _robust_weight(r_z, p.loss, s_z)
-        w_new = np.sqrt(np.concatenate([w_px, w_z]))
-        if n_prior:
-            w_new[n_res - 6 * n_prior :] = 1.0  # the pose prior is not an outlier candidate
-        if np.allclose(w_new, w_sqrt, atol=1e-3):
-            break
-        w_sqrt = w_new
-    assert sol is not None
-
-    def px_errors(x: F64) -> F64:
-        return np.linalg.norm(residuals(x)[: 2 * len(use)].reshape(-1, 2), axis=1)
-
-    e_b, e_a = px_errors(x_before), px_errors(sol.x)
-
-    def rms(e: F64) -> float:
-        return float(np.sqrt(np.mean(e * e))) if e.size else 0.0
-
-    def group(e: F64, key: NDArray[np.int_], ids: Sequence[int]) -> dict[int, float]:
-        return {k: rms(e[key == i]) for i, k in enumerate(ids)}
-
-    R, t, X = unpack(sol.x)
     after = {k: np.array(T_world_cam[k], dtype=np.float64) for k in kf_ids}
     change: dict[int, tuple[float, float]] = {k: (0.0, 0.0) for k in adjusted if k in fixed}
     for k in free:
@@ -615,41 +536,42 @@ def bundle_adjust(
         dR = before[:3, :3].T @ after[k][:3, :3]
         ang = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(dR) - 1.0) / 2.0))))
         change[k] = (float(np.linalg.norm(after[k][:3, 3] - before[:3, 3])), ang)
+    pt_ids = pb.point_ids
     return SBAResult(
         gauge_id=gauge,
         T_world_cam_before={k: np.array(T_world_cam[k], dtype=np.float64) for k in kf_ids},
         T_world_cam_after=after,
         X_world_after={pid: X[i].copy() for i, pid in enumerate(pt_ids)},
-        rmse_before_px=rms(e_b),
-        rmse_after_px=rms(e_a),
-        point_rmse_before_px=group(e_b, o_pt, pt_ids),
-        point_rmse_after_px=group(e_a, o_pt, pt_ids),
-        keyframe_rmse_before_px=group(e_b, o_kf, adjusted),
-        keyframe_rmse_after_px=group(e_a, o_kf, adjusted),
+        rmse_before_px=_rms(e_b),
+        rmse_after_px=_rms(e_a),
+        point_rmse_before_px=_rms_by(e_b, pb.o_pt, pt_ids),
+        point_rmse_after_px=_rms_by(e_a, pb.o_pt, pt_ids),
+        keyframe_rmse_before_px=_rms_by(e_b, pb.o_kf, adjusted),
+        keyframe_rmse_after_px=_rms_by(e_a, pb.o_kf, adjusted),
         pose_change=change,
         unadjusted_ids=tuple(unadjusted),
         ignored_point_ids=tuple(ignored),
         seconds=time.perf_counter() - t0,
         nfev=nfev,
-        message=str(sol.message),
+        message=message,
     )
 
 
 def bundle_adjust_store(
-    store: object,
-    points: Sequence[object],
+    store: KeyframeStore,
+    points: Sequence[AnnotatedPointLike],
     params: SBAParams | None = None,
     gauge_id: int | None = None,
     fixed_ids: Sequence[int] = (),
 ) -> SBAResult:
-    """:func:`bundle_adjust` on a :class:`engine.dense.keyframes.KeyframeStore` and
-    :class:`engine.project.AnnotatedPoint` s (their ``X_world`` seeds the points)."""
-    kfs = store.keyframes  # type: ignore[attr-defined]
+    """:func:`bundle_adjust` on a keyframe store and annotated points (their ``X_world``
+    seeds the points)."""
+    kfs = store.keyframes
     T = {k.id: k.T_world_cam for k in kfs}
-    depths = {k.id: k.depth_m for k in kfs}
-    given = {p.id: p.X_world for p in points if p.X_world is not None}  # type: ignore[attr-defined]
+    depths: dict[int, NDArray[np.floating]] = {k.id: k.depth_m for k in kfs}
+    given = {p.id: p.X_world for p in points if p.X_world is not None}
     return bundle_adjust(
-        store.intrinsics,  # type: ignore[attr-defined]
+        store.intrinsics,
         T,
         collect_observations(points),
         depth_maps=depths,
@@ -663,15 +585,15 @@ def bundle_adjust_store(
 def reprojection_errors(
     intr: Intrinsics,
     T_world_cam: Mapping[int, F64],
-    points: Sequence[object],
+    points: Sequence[AnnotatedPointLike],
 ) -> dict[int, float]:
     """Per-point RMS reprojection error (px) of points with ``X_world`` (NaN without)."""
     out = {}
     for pt in points:
-        X = pt.X_world  # type: ignore[attr-defined]
-        obs = pt.observations_px  # type: ignore[attr-defined]
+        X = pt.X_world
+        obs = pt.observations_px
         if X is None or not obs:
-            out[pt.id] = math.nan  # type: ignore[attr-defined]
+            out[pt.id] = math.nan
             continue
         errs = []
         for k, (u, v) in obs.items():
@@ -680,85 +602,5 @@ def reprojection_errors(
             T_cw = invert(T_world_cam[k])
             pix = project(intr, (T_cw[:3, :3] @ X + T_cw[:3, 3])[None])[0]
             errs.append(float(np.hypot(pix[0] - u, pix[1] - v)))
-        out[pt.id] = float(np.sqrt(np.mean(np.square(errs)))) if errs else math.nan  # type: ignore[attr-defined]
+        out[pt.id] = float(np.sqrt(np.mean(np.square(errs)))) if errs else math.nan
     return out
-
-
-@dataclass(frozen=True)
-class SyntheticProblem:
-    """Generated SBA test case: true and perturbed poses, points and observations."""
-
-    intrinsics: Intrinsics
-    T_world_cam_true: dict[int, F64]
-    T_world_cam_noisy: dict[int, F64]
-    X_world_true: dict[int, F64]
-    observations: list[Observation]
-    depth_maps: dict[int, NDArray[np.float32]]
-
-
-def synthetic_problem(
-    n_keyframes: int = 30,
-    n_points: int = 40,
-    *,
-    seed: int = 0,
-    n_perturbed: int = 5,
-    err_m: float = 0.05,
-    err_deg: float = 1.5,
-    pixel_noise: float = 0.3,
-    depth_noise_rel: float = 0.003,
-    intrinsics: Intrinsics | None = None,
-) -> SyntheticProblem:
-    """Keyframes on a 3 m rail looking at a studio-sized point set; the last
-    ``n_perturbed`` keyframes get a growing pose error (drift at the end of a sweep, Fig. 11)."""
-    from engine.geometry import se3_exp
-
-    rng = np.random.default_rng(seed)
-    intr = intrinsics or Intrinsics()
-    X = np.column_stack(
-        [
-            rng.uniform(-2.0, 2.0, n_points),
-            rng.uniform(-1.2, 0.8, n_points),
-            rng.uniform(3.0, 5.5, n_points),
-        ]
-    )
-    T_true, T_noisy = {}, {}
-    for i in range(n_keyframes):
-        s = i / max(1, n_keyframes - 1)
-        yaw = math.radians(-12.0 + 24.0 * s)
-        R = np.array(
-            [[math.cos(yaw), 0, math.sin(yaw)], [0, 1, 0], [-math.sin(yaw), 0, math.cos(yaw)]]
-        )
-        T = np.eye(4)
-        T[:3, :3] = R
-        T[:3, 3] = [-1.5 + 3.0 * s, 0.05 * math.sin(3 * s), 0.0]
-        T_true[i] = T
-        k = i - (n_keyframes - n_perturbed)
-        if k >= 0:
-            g = (k + 1) / n_perturbed
-            d = rng.normal(size=6)
-            d[:3] *= err_m * g / np.linalg.norm(d[:3])
-            d[3:] *= math.radians(err_deg) * g / np.linalg.norm(d[3:])
-            T_noisy[i] = T @ se3_exp(d)
-        else:
-            T_noisy[i] = T.copy()
-    obs, depths = [], {}
-    for i, T in T_true.items():
-        T_cw = invert(T)
-        pc = X @ T_cw[:3, :3].T + T_cw[:3, 3]
-        uv = project(intr, pc)
-        dm = np.zeros((intr.height, intr.width), np.float32)
-        for j in range(n_points):
-            u, v = uv[j] + rng.normal(scale=pixel_noise, size=2)
-            if pc[j, 2] > 0.1 and 1 <= u < intr.width - 2 and 1 <= v < intr.height - 2:
-                obs.append(Observation(j, i, float(u), float(v)))
-                # independent noise per depth pixel, as a sensor has
-                dm[round(v) - 1 : round(v) + 2, round(u) - 1 : round(u) + 2] = pc[j, 2] * (
-                    1.0 + depth_noise_rel * rng.normal(size=(3, 3))
-                )
-        depths[i] = dm
-    return SyntheticProblem(intr, T_true, T_noisy, {j: X[j] for j in range(n_points)}, obs, depths)
-
-
-def pose_error_m(T_est: Mapping[int, F64], T_true: Mapping[int, F64]) -> float:
-    """Mean camera-centre error (m) over the keyframes of ``T_true``."""
-    return float(np.mean([np.linalg.norm(T_est[k][:3, 3] - T_true[k][:3, 3]) for k in T_true]))

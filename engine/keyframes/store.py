@@ -1,4 +1,4 @@
-"""Keyframe database of Tykkälä 2014 sec. 6: storage and nearest-keyframe search.
+"""Keyframe store of Tykkälä 2014 sec. 6: storage, nearest-keyframe search, edits.
 
 Store layout (a folder, written atomically file by file, ``keyframes.json`` last so that it
 is the commit point)::
@@ -19,7 +19,8 @@ sensor range (Fig. 12).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,7 @@ class KeyframeStoreError(TrackerError):
     """A keyframe store cannot be read or written (missing, corrupt or incompatible)."""
 
 
-@dataclass
+@dataclass(frozen=True, slots=True)
 class Keyframe:
     """One keyframe K = {P*, c*, T*} (the points are selected lazily from the images)."""
 
@@ -53,7 +54,6 @@ class Keyframe:
     T_world_cam: F64
     gray: NDArray[np.uint8]
     depth_m: NDArray[np.float32]
-    _reference: object | None = field(default=None, repr=False)
 
 
 def frustum_test_points(intr: Intrinsics, depths_m: tuple[float, ...] = FRUSTUM_DEPTHS_M) -> F64:
@@ -89,7 +89,13 @@ def pose_distance(T_a: F64, T_b: F64) -> tuple[float, float]:
 
 
 class KeyframeStore:
-    """Keyframes of one camera with lazily precomputed references and eq. (19)-(21) search."""
+    """Keyframes of one camera with the eq. (19)-(21) search.
+
+    :meth:`add` appends in place (the tracker building its keyframes online, a sweep);
+    every edit of a finished store (:meth:`without`, :meth:`with_poses`,
+    :meth:`with_depths`, :meth:`subset`, :meth:`copy`) returns a new store and leaves this one
+    as it was, so a store shown or saved elsewhere never changes under it.
+    """
 
     def __init__(self, intrinsics: Intrinsics, keyframes: list[Keyframe] | None = None) -> None:
         self.intrinsics = intrinsics
@@ -113,10 +119,49 @@ class KeyframeStore:
         self.keyframes.append(kf)
         return kf
 
-    def subset(self, ids: list[int]) -> KeyframeStore:
-        """A store with only the given keyframes (sharing their cached references)."""
+    def subset(self, ids: Iterable[int]) -> KeyframeStore:
+        """A new store with only the given keyframes (images shared)."""
         keep = set(ids)
         return KeyframeStore(self.intrinsics, [k for k in self.keyframes if k.id in keep])
+
+    # -- new stores (this one is left unchanged) ----------------------------------------
+    def copy(self) -> KeyframeStore:
+        """A new store with the same keyframes (images shared, poses copied): adding to it
+        leaves this store unchanged."""
+        return KeyframeStore(
+            self.intrinsics,
+            [Keyframe(k.id, k.T_world_cam.copy(), k.gray, k.depth_m) for k in self.keyframes],
+        )
+
+    def without(self, kf_id: int) -> KeyframeStore:
+        """A new store without keyframe ``kf_id`` (KeyError if absent)."""
+        self.by_id(kf_id)
+        return KeyframeStore(self.intrinsics, [k for k in self.keyframes if k.id != kf_id])
+
+    def with_poses(self, T_world_cam: Mapping[int, F64]) -> KeyframeStore:
+        """A new store with some keyframe poses replaced (e.g. after SBA)."""
+        return KeyframeStore(
+            self.intrinsics,
+            [
+                Keyframe(
+                    k.id,
+                    np.array(T_world_cam.get(k.id, k.T_world_cam), dtype=np.float64),
+                    k.gray,
+                    k.depth_m,
+                )
+                for k in self.keyframes
+            ],
+        )
+
+    def with_depths(self, depth_m: Mapping[int, NDArray[np.float32]]) -> KeyframeStore:
+        """A new store with some keyframe depth maps replaced (e.g. after fusion)."""
+        return KeyframeStore(
+            self.intrinsics,
+            [
+                Keyframe(k.id, k.T_world_cam.copy(), k.gray, depth_m.get(k.id, k.depth_m))
+                for k in self.keyframes
+            ],
+        )
 
     # -- search, sec. 6.2 ------------------------------------------------------------------
     def _scores(self, T_world_cam: F64) -> tuple[F64, F64, F64]:

@@ -18,7 +18,8 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics, backproject, project
 from engine.geometry import invert
-from engine.sba import depth_at
+from engine.keyframes.depth_sample import depth_at
+from engine.keyframes.store import Keyframe
 
 F64 = NDArray[np.float64]
 
@@ -195,17 +196,16 @@ def snap(
 
 def predict_and_snap(
     intr: Intrinsics,
-    src: object,
+    src: Keyframe,
     uv_src: tuple[float, float],
-    dst: object,
+    dst: Keyframe,
     **snap_kw: float,
 ) -> tuple[Prediction, Snap | None]:
-    """Predict a click on keyframe ``src`` in keyframe ``dst`` and snap it (keyframes have
-    ``T_world_cam``, ``gray``, ``depth_m``)."""
-    X = point_from_click(intr, src.T_world_cam, src.depth_m, uv_src)  # type: ignore[attr-defined]
-    pred = predict(intr, X, dst.T_world_cam, dst.depth_m)  # type: ignore[attr-defined]
+    """Predict a click on keyframe ``src`` in keyframe ``dst`` and snap it."""
+    X = point_from_click(intr, src.T_world_cam, src.depth_m, uv_src)
+    pred = predict(intr, X, dst.T_world_cam, dst.depth_m)
     if pred.uv is None:
         return pred, None
-    A = local_affine(intr, src.T_world_cam, src.depth_m, uv_src, dst.T_world_cam)  # type: ignore[attr-defined]
-    s = snap(src.gray, uv_src, dst.gray, pred.uv, A=A, **snap_kw)  # type: ignore[arg-type, attr-defined]
+    A = local_affine(intr, src.T_world_cam, src.depth_m, uv_src, dst.T_world_cam)
+    s = snap(src.gray, uv_src, dst.gray, pred.uv, A=A, **snap_kw)  # type: ignore[arg-type]
     return pred, s

@@ -1,4 +1,4 @@
-"""numba kernels of the depth fusion (:mod:`engine.fusion`), imported when fusion runs so
+"""numba kernels of the depth fusion (:mod:`engine.keyframes.fusion`), imported when fusion runs so
 that start-up stays fast. ``cache=True`` keeps the compiled code between runs."""
 
 from __future__ import annotations

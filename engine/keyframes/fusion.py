@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from engine.camera import Intrinsics, pixels_to_normalized
 from engine.errors import StudioTrackError
 from engine.geometry import invert
+from engine.keyframes.store import KeyframeStore
 
 F64 = NDArray[np.float64]
 
@@ -122,15 +123,9 @@ class FusionResult:
     def hole_fraction_after(self) -> float:
         return float(np.mean([s.hole_fraction_after for s in self.stats])) if self.stats else 0.0
 
-    def apply_to(self, store: object) -> object:
-        """A copy of ``store`` (KeyframeStore) with the fused depth maps."""
-        from engine.dense.keyframes import Keyframe, KeyframeStore
-
-        kfs = [
-            Keyframe(k.id, k.T_world_cam.copy(), k.gray, self.depth_m.get(k.id, k.depth_m))
-            for k in store.keyframes  # type: ignore[attr-defined]
-        ]
-        return KeyframeStore(store.intrinsics, kfs)  # type: ignore[attr-defined]
+    def apply_to(self, store: KeyframeStore) -> KeyframeStore:
+        """A new store: ``store`` with the fused depth maps."""
+        return store.with_depths(self.depth_m)
 
 
 def hole_fraction(depth_m: NDArray[np.floating]) -> float:
@@ -209,33 +204,34 @@ class SourceFrames:
 
 
 def fuse_depth(
-    store: object,
+    store: KeyframeStore,
     frames: FrameSet | Sequence[PosedFrame],
     params: FusionParams | None = None,
     *,
     progress: Callable[[int, int], None] | None = None,
     should_stop: Callable[[], bool] = lambda: False,
 ) -> FusionResult:
-    """Fuse posed frames into their nearest keyframes of ``store`` (a KeyframeStore).
+    """Fuse posed frames into their nearest keyframes of ``store``.
 
     Frames are grouped by nearest keyframe (sec. 6.2) from their poses, then each keyframe is
     fused from its frames (one sample buffer in memory at a time). ``progress(done, total)``
     is called per frame; when ``should_stop()`` turns true the fusion stops and returns
     ``cancelled=True`` with the original depth maps (nothing half-fused).
     """
-    from engine.fusion_kernels import robust_inverse_depth, warp_into_keyframe
+    from engine.keyframes.fusion_kernels import robust_inverse_depth, warp_into_keyframe
 
     p = params or FusionParams()
     t0 = time.perf_counter()
     fs: FrameSet = frames if hasattr(frames, "load") else PosedFrames(frames)  # type: ignore[arg-type]
-    kfs = list(store.keyframes)  # type: ignore[attr-defined]
-    intr: Intrinsics = store.intrinsics  # type: ignore[attr-defined]
+    kfs = list(store.keyframes)
+    intr: Intrinsics = store.intrinsics
     if not kfs:
         raise FusionError("fusion: the keyframe store is empty: record a sweep first")
     n = len(fs)
     groups: dict[int, list[int]] = {k.id: [] for k in kfs}
     for i in range(n):
-        kf, _ = store.nearest(fs.pose(i), math.pi, 1e9)  # type: ignore[attr-defined]
+        kf, _ = store.nearest(fs.pose(i), math.pi, 1e9)
+        assert kf is not None  # the store is not empty
         groups[kf.id].append(i)
     vs, us = np.mgrid[0 : intr.height, 0 : intr.width]
     uv = np.stack([us.ravel(), vs.ravel()], axis=1).astype(np.float64)

@@ -1,11 +1,14 @@
-"""Recording a keyframe sweep for the operator workflow (Tykkälä 2014 sec. 6.1).
+"""Recording a keyframe sweep of the empty studio (Tykkälä 2014 sec. 6.1).
 
-Like :func:`engine.dense.sweep.sweep` (incremental dense tracking, a keyframe added when the
-camera is farther than the thresholds from every existing one), plus what the Keyframes page
-needs: a per-frame progress record (state, new keyframe thumbnail), appending to an existing
-store (a second sweep), and the non-keyframe frames with their tracked poses kept for the
-depth fusion of Fig. 10. While the track is lost, no keyframe is added (the dense tracker
-adds keyframes only in the TRACKING state) and the record says so.
+The camera sweeps the static scene; it is tracked by the dense keyframe tracker building its
+keyframes online (Algorithms 2 and 3 alternating: track against the nearest keyframe, add the
+current frame as a keyframe when it is farther than ``kf_add_dist_m`` / ``kf_add_angle_deg``
+from every existing one), driven by the engine loop (:func:`engine.loop.run_tracking`). The
+keyframes and their poses are the store. One recorder serves ``studiotrack sweep`` and the
+Keyframes page: per-frame progress records (state, new keyframe thumbnail), appending to an
+existing store (a second sweep), and the non-keyframe frames with their tracked poses kept
+for the depth fusion of Fig. 10. While the track is lost no keyframe is added (the dense
+tracker adds keyframes only in the TRACKING state) and the record says so.
 """
 
 from __future__ import annotations
@@ -14,14 +17,16 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.dense.params import DenseParams
 from engine.errors import ParamsError, TrackerError
 from engine.frames import readonly
-from engine.fusion import PosedFrame
+from engine.keyframes.fusion import PosedFrame
+from engine.keyframes.store import KeyframeStore
+from engine.sources.base import Source
 
 F64 = NDArray[np.float64]
 
@@ -96,7 +101,7 @@ class SweepProgress:
 
 @dataclass(frozen=True)
 class SweepRecording:
-    store: Any  # KeyframeStore
+    store: KeyframeStore
     frames: tuple[PosedFrame, ...]  # non-keyframe frames with tracked poses (for fusion)
     trajectory: dict[int, F64]  # frame index -> tracked T_world_cam (good frames)
     frames_processed: int
@@ -114,20 +119,25 @@ def thumbnail(gray: NDArray[np.uint8], width: int = 96) -> NDArray[np.uint8]:
 
 
 def record_sweep(
-    source: Any,
+    source: Source,
     params: SweepParams | None = None,
     *,
-    store: Any | None = None,
-    dense_params: Any | None = None,
+    store: KeyframeStore | None = None,
+    dense_params: DenseParams | None = None,
     on_progress: Callable[[SweepProgress], None] | None = None,
     should_stop: Callable[[], bool] = lambda: False,
 ) -> SweepRecording:
-    """Track ``source`` incrementally and add keyframes (appending to ``store`` if given)."""
+    """Track ``source`` incrementally and add keyframes (appending to ``store`` if given).
+
+    The keyframe thresholds of ``params`` replace those of ``dense_params``; ``store`` is
+    not changed (the recording extends a copy). ``on_progress`` gets one record per frame;
+    when ``should_stop()`` turns true the recording ends with ``stopped=True`` and keeps
+    what it has.
+    """
     import cv2
 
-    from engine.dense.keyframes import Keyframe, KeyframeStore
     from engine.dense.tracking import DenseKeyframeTracker
-    from engine.trackers.dense import DenseParams
+    from engine.loop import run_tracking
 
     p = params or SweepParams()
     dp = dataclasses.replace(
@@ -136,30 +146,27 @@ def record_sweep(
         kf_add_dist_m=p.kf_add_dist_m,
         kf_add_angle_deg=p.kf_add_angle_deg,
     )
-    if store is not None:
-        # a copy: the caller's store changes only when the recording is accepted
-        base = KeyframeStore(
-            store.intrinsics,
-            [Keyframe(k.id, k.T_world_cam.copy(), k.gray, k.depth_m) for k in store.keyframes],
-        )
-        tracker: Any = _AppendingTracker(dp, base)
-    else:
-        tracker = DenseKeyframeTracker(dp)
+    # the caller's store changes only when the recording is accepted: extend a copy
+    tracker = DenseKeyframeTracker(
+        dp, None if store is None else store.copy(), extend_store=True
+    )
+    stopped = False
+
+    def stop() -> bool:
+        nonlocal stopped
+        stopped = should_stop()
+        return stopped
+
     t0 = time.perf_counter()
     n = lost = 0
     kept: list[PosedFrame] = []
     traj: dict[int, F64] = {}
-    stopped = False
-    total = len(source) if hasattr(source, "__len__") else 0
-    for frame in source.frames():
-        if should_stop():
-            stopped = True
-            break
-        if p.max_frames and n >= p.max_frames:
-            break
-        known = {k.id for k in tracker.store.keyframes} if tracker.store is not None else set()
-        res = tracker.track(frame)
-        n += 1
+    known = set() if store is None else {k.id for k in store.keyframes}
+    for rec in run_tracking(
+        source, tracker, should_stop=stop, max_frames=p.max_frames or None
+    ):
+        frame, res = rec.frame, rec.result
+        n = rec.seq + 1
         good = res.state.is_good
         if not good:
             lost += 1
@@ -175,6 +182,7 @@ def record_sweep(
                     thumbnail(k.gray),
                     float(np.mean(k.depth_m > 0)),
                 )
+                known.update(a.id for a in added)
         if good and res.T_world_cam is not None:
             T = np.array(res.T_world_cam, dtype=np.float64)
             traj[frame.index] = T
@@ -204,68 +212,10 @@ def record_sweep(
                     if res.T_world_cam is None
                     else readonly(np.array(res.T_world_cam, dtype=np.float64)),
                     new_kf,
-                    total,
+                    rec.source_len,
                 )
             )
     st = tracker.store
     if st is None or len(st) == 0:
-        raise TrackerError(
-            f"sweep of {getattr(source, 'name', source)}: no frames with depth, no keyframes"
-        )
+        raise TrackerError(f"sweep of {source.name}: no frames with depth, no keyframes")
     return SweepRecording(st, tuple(kept), traj, n, lost, time.perf_counter() - t0, stopped)
-
-
-def _appending_tracker_cls() -> type:
-    from engine.dense.tracking import DenseKeyframeTracker
-
-    class Appending(DenseKeyframeTracker):  # type: ignore[misc, valid-type]
-        """Keyframe tracker on a given store that still adds keyframes (a second sweep)."""
-
-        def reset(self) -> None:
-            super().reset()
-            self._online = True
-
-    return Appending
-
-
-def _AppendingTracker(params: Any, store: Any) -> Any:
-    return _appending_tracker_cls()(params, store)
-
-
-def delete_keyframe(store: Any, kf_id: int) -> Any:
-    """A copy of ``store`` without keyframe ``kf_id`` (KeyError if absent)."""
-    from engine.dense.keyframes import KeyframeStore
-
-    store.by_id(kf_id)
-    return KeyframeStore(store.intrinsics, [k for k in store.keyframes if k.id != kf_id])
-
-
-def with_poses(store: Any, T_world_cam: dict[int, F64]) -> Any:
-    """A copy of ``store`` with some keyframe poses replaced (e.g. after SBA)."""
-    from engine.dense.keyframes import Keyframe, KeyframeStore
-
-    return KeyframeStore(
-        store.intrinsics,
-        [
-            Keyframe(
-                k.id,
-                np.array(T_world_cam.get(k.id, k.T_world_cam), dtype=np.float64),
-                k.gray,
-                k.depth_m,
-            )
-            for k in store.keyframes
-        ],
-    )
-
-
-def with_depths(store: Any, depth_m: dict[int, NDArray[np.float32]]) -> Any:
-    """A copy of ``store`` with some keyframe depth maps replaced (e.g. after fusion)."""
-    from engine.dense.keyframes import Keyframe, KeyframeStore
-
-    return KeyframeStore(
-        store.intrinsics,
-        [
-            Keyframe(k.id, k.T_world_cam.copy(), k.gray, depth_m.get(k.id, k.depth_m))
-            for k in store.keyframes
-        ],
-    )
