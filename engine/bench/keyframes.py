@@ -25,13 +25,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.bench import BenchSpec
 from engine.camera import Intrinsics, project
 from engine.geometry import invert, se3_exp
 from engine.keyframes.sba import Observation
 
 F64 = NDArray[np.float64]
-
-from engine.bench import BenchSpec
 
 HELP = "SBA and depth fusion of the keyframe model (seconds, error reduction, holes)"
 
