@@ -1,1 +1,10 @@
 """StudioTrack application: Qt main window, engine-thread bridge, CLI and workflows."""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("studiotrack")
+except PackageNotFoundError:  # running from a source tree that was never installed
+    __version__ = "unknown"

@@ -8,23 +8,14 @@ import sys
 from pathlib import Path
 
 from PySide6.QtCore import QTimer
-from PySide6.QtGui import QColor, QFont, QIcon, QPalette
+from PySide6.QtGui import QColor, QFont, QPalette
 from PySide6.QtWidgets import QApplication
 
-ASSETS = Path(__file__).resolve().parents[1] / "assets"
+from app.icons import icon
+
 DEFAULT_SOURCE = "synthetic:frames=100000,presenter=1,path=rail"
 
 _configured = False
-
-
-def asset_path(name: str) -> Path:
-    return ASSETS / name
-
-
-def icon(name: str) -> QIcon:
-    """An icon from ``assets/`` (empty icon if the file is missing, e.g. a wheel install)."""
-    path = asset_path(name)
-    return QIcon(str(path)) if path.exists() else QIcon()
 
 
 def configure_pyqtgraph() -> None:

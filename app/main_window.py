@@ -10,7 +10,7 @@ from __future__ import annotations
 import traceback
 
 from PySide6.QtCore import QByteArray, QSize, Qt, QTimer, Slot
-from PySide6.QtGui import QAction, QCloseEvent, QIcon, QKeySequence
+from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
     QFrame,
     QHBoxLayout,
@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.context import AppContext
-from app.main import asset_path, icon
+from app.icons import page_icon
 from app.pages import PageSpec, discover_pages
 from widgets.log_panel import LogDock, LogEntry, LogLevel
 
@@ -36,13 +36,6 @@ STATUS_STYLES = {
     LogLevel.INFO: "",
     LogLevel.DEBUG: "",
 }
-
-
-def page_icon(title: str) -> QIcon:
-    """``assets/icons/<title>.svg`` (lower case, spaces as ``_``), else a generic page icon."""
-    slug = title.lower().replace(" ", "_")
-    name = f"icons/{slug}.svg" if asset_path(f"icons/{slug}.svg").exists() else "icons/page.svg"
-    return icon(name)
 
 
 def _error_page(title: str, message: str) -> QWidget:

@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
 
 import engine.trackers as trackers
 from app.context import AppContext
-from app.main import icon
+from app.icons import icon
 from app.pages import PageSpec
 from engine.loop import FrameRecord
 from engine.trackers.base import Overlay, TrackState

@@ -304,11 +304,11 @@ def test_form_follows_a_run_started_elsewhere(qtbot, monkeypatch, ctx) -> None: 
 
 
 def test_every_page_has_its_own_nav_icon(window) -> None:  # type: ignore[no-untyped-def]
-    from app.main import asset_path
+    from app.icons import has_asset
 
     for title in window.pages:
         slug = title.lower().replace(" ", "_")
-        assert asset_path(f"icons/{slug}.svg").exists(), f"assets/icons/{slug}.svg missing"
+        assert has_asset(f"icons/{slug}.svg"), f"app/assets/icons/{slug}.svg missing"
 
 
 @pytest.mark.parametrize("title", ["Live", "Presenter", "Beacons", "PTZ"])
