@@ -27,6 +27,11 @@ class Frame:
     ``gt_T_world_cam`` is the ground-truth camera pose if known; ``gt_box_xywh`` the
     ground-truth target box (OTB convention: top-left x, y, width, height) if known.
     ``extras`` carries source-specific data (e.g. range readings, presenter truth).
+    ``skipped_before`` is the number of frames a live source dropped since the previous frame
+    it yielded because the consumer was slower (the newest-frame policy of
+    :mod:`engine.sources.grabber`; 0 for recorded sources). ``link_lost_reason`` is set (e.g.
+    "camera disconnected") on frames without a picture that a live source yields while its
+    device is gone; the loop reports them LOST without calling the tracker.
     """
 
     index: int
@@ -37,6 +42,8 @@ class Frame:
     gt_T_world_cam: NDArray[np.float64] | None = None
     gt_box_xywh: tuple[float, float, float, float] | None = None
     extras: dict[str, Any] = field(default_factory=dict)
+    skipped_before: int = 0
+    link_lost_reason: str | None = None
 
     def __post_init__(self) -> None:
         readonly(self.color_bgr)

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import queue
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
 from engine.frames import Frame
 from engine.sources.base import Source
-from engine.trackers.base import Tracker, TrackResult
+from engine.trackers.base import Tracker, TrackResult, TrackState
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,6 +46,8 @@ class FrameRecord:
     process_ms: float
     fps: float
     source_len: int
+    #: frames the live source skipped over the last second, per second (newest-frame policy)
+    skipped_per_s: float = 0.0
 
 
 def _apply_commands(tracker: Tracker, commands: queue.Queue[Command] | None) -> None:
@@ -79,13 +82,23 @@ def run_tracking(
     period_s = 1.0 / source.nominal_fps if realtime and source.nominal_fps > 0 else 0.0
     fps_ema = 0.0
     last_t = time.perf_counter()
+    last_good: TrackResult | None = None
+    skips: deque[tuple[float, int]] = deque()
     for seq, frame in enumerate(source.frames()):
         if should_stop() or (max_frames is not None and seq >= max_frames):
             return
         _apply_commands(tracker, commands)
         t0 = time.perf_counter()
-        result = tracker.track(frame)
+        if frame.link_lost_reason is not None:
+            result = _lost(frame.link_lost_reason, last_good)
+        else:
+            result = tracker.track(frame)
+            last_good = result
         t1 = time.perf_counter()
+        if frame.skipped_before:
+            skips.append((t1, frame.skipped_before))
+        while skips and skips[0][0] < t1 - 1.0:
+            skips.popleft()
         if period_s:
             spare = period_s - (t1 - last_t)
             if spare > 0:
@@ -103,6 +116,19 @@ def run_tracking(
             process_ms=(t1 - t0) * 1000.0,
             fps=fps_ema,
             source_len=n,
+            skipped_per_s=float(sum(k for _, k in skips)),
         )
+        if max_frames is not None and seq + 1 >= max_frames:
+            return  # without waiting for one more (live) frame
+
+
+def _lost(reason: str, last: TrackResult | None) -> TrackResult:
+    """LOST while the source has no picture: hold the last pose/box, say why."""
+    return TrackResult(
+        state=TrackState.LOST,
+        T_world_cam=None if last is None else last.T_world_cam,
+        box_xywh=None if last is None else last.box_xywh,
+        extras={"lost_reason": reason},
+    )
 
 

@@ -1,5 +1,6 @@
 """``studiotrack demo-data OUT --frames N [--seed S] [--path ...] [--presenter 0|1]``:
-write the built-in studio as a TUM RGB-D folder (readable by evo and the TUM source)."""
+write the built-in studio as a TUM RGB-D folder (readable by evo and the TUM source), or with
+``--format realsense`` as a RealSense SDK recording (``OUT.bag``, played by the SDK)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,16 @@ from app.commands import CommandSpec
 from app.commands._common import emit_json, log
 
 PATHS = ("rail", "pan", "handheld", "static")
+FORMATS = ("tum", "realsense")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("out", type=Path, help="output folder (must not exist or be empty)")
+    p.add_argument("out", type=Path,
+                   help="output folder (must not exist or be empty); with --format realsense "
+                   "a new .bag file")
+    p.add_argument("--format", choices=FORMATS, default="tum",
+                   help="tum: a TUM RGB-D folder (default); realsense: a .bag in the RealSense "
+                   "SDK's recording layout, with the ground truth on an extra topic")
     p.add_argument(
         "--frames",
         type=int,
@@ -41,6 +48,10 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.frames is not None and args.frames < 1:
         raise SourceError(f"--frames must be at least 1, got {args.frames}")
+    if args.format == "realsense":
+        from engine.sources.realsense_bag import check_bag_path
+
+        check_bag_path(args.out)  # before rendering anything
     extra = parse_options(args.options)
     opts = {
         "seed": str(args.seed),
@@ -61,7 +72,13 @@ def _run(args: argparse.Namespace) -> int:
         if n % step == 0 or n == len(src):
             log(f"  {n}/{len(src)} frames")
 
-    summary = write_tum_folder(src.frames(), args.out, src.intrinsics, progress)
+    if args.format == "realsense":
+        from engine.sources.realsense_bag import write_realsense_bag
+
+        summary = write_realsense_bag(src.frames(), args.out, src.intrinsics,
+                                      fps=src.nominal_fps, progress=progress)
+    else:
+        summary = write_tum_folder(src.frames(), args.out, src.intrinsics, progress)
     summary["source"] = src.name
     if args.json:
         emit_json(summary)
@@ -71,7 +88,7 @@ def _run(args: argparse.Namespace) -> int:
 COMMANDS = (
     CommandSpec(
         name="demo-data",
-        help="write the built-in virtual studio as a TUM RGB-D folder",
+        help="write the built-in virtual studio as a TUM RGB-D folder or a RealSense .bag",
         description="Render the built-in studio and write rgb/, depth/, rgb.txt, depth.txt, "
         "groundtruth.txt and camera.json (plus presenter.txt with --presenter 1).",
         add_arguments=add_arguments,

@@ -9,6 +9,8 @@ Built in:
 - ``ptz-sim[:key=value,...]`` - ball on a circle seen by a stepping pan-tilt camera
   (``engine.ptz.sim``; closes the pan/tilt loop with the ``ptz`` tracker)
 - ``camera:N`` - live webcam N through OpenCV
+- ``realsense[:serial=...,width=...,...]`` - a RealSense depth camera through its SDK;
+  ``path/to/file.bag`` - a RealSense recording (see ``engine.sources.realsense``)
 - ``beacons[:...]``, ``beacons-csv:FILE[,...]``, ``beacons-udp:[...]`` - range beacons
   (see ``engine.sources.beacons``)
 - a TUM RGB-D folder (has ``rgb.txt``)

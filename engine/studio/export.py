@@ -26,6 +26,8 @@ def write_tum_folder(
     out_dir: Path,
     intrinsics: Intrinsics,
     progress: Callable[[int], None] | None = None,
+    *,
+    written_by: str = "studiotrack demo-data (built-in virtual studio)",
 ) -> dict[str, object]:
     """Write ``frames`` (with depth) as a TUM folder; returns a small summary."""
     out_dir = Path(out_dir)
@@ -33,7 +35,7 @@ def write_tum_folder(
         raise SourceError(f"{out_dir}: output folder exists and is not empty")
     (out_dir / "rgb").mkdir(parents=True, exist_ok=True)
     (out_dir / "depth").mkdir(parents=True, exist_ok=True)
-    head = "# written by studiotrack demo-data (built-in virtual studio)\n"
+    head = f"# written by {written_by}\n"
     rgb_lines = [head + "# timestamp filename\n"]
     depth_lines = [head + "# timestamp filename\n"]
     gt_lines = [head + "# timestamp tx ty tz qx qy qz qw\n"]

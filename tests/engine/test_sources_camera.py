@@ -1,6 +1,9 @@
-"""CameraSource: the no-device error (this machine has no camera) and the read loop on a fake."""
+"""CameraSource: the no-device error (this machine has no camera), the newest-frame read loop,
+unplugging and reconnecting, on a fake device."""
 
 from __future__ import annotations
+
+import time
 
 import cv2
 import numpy as np
@@ -17,6 +20,7 @@ class FakeCapture:
     """Stands in for cv2.VideoCapture: yields ``n`` frames, then fails like an unplugged cam."""
 
     released = 0
+    period_s = 0.02  # a camera delivers at its own rate
 
     def __init__(self, index: int, n: int = 3, opened: bool = True) -> None:
         self.index, self.n, self.opened, self.k = index, n, opened, 0
@@ -28,6 +32,7 @@ class FakeCapture:
         return 25.0 if prop == cv2.CAP_PROP_FPS else 0.0
 
     def read(self) -> tuple[bool, np.ndarray | None]:
+        time.sleep(self.period_s)
         if self.k >= self.n:
             return False, None
         self.k += 1
@@ -60,21 +65,50 @@ def test_live_frames_from_fake_device(monkeypatch: pytest.MonkeyPatch) -> None:
     assert len(src) == 0
     assert src.nominal_fps == 25.0
     assert src.name == "camera 2"
+    src.timeout_s, src.reconnect_s = 0.2, 0.01
     it = src.frames()
     frames = [next(it) for _ in range(3)]
-    with pytest.raises(SourceError, match=r"^camera 2: no frame received"):
-        next(it)
     assert [f.index for f in frames] == [0, 1, 2]
     assert [int(f.color_bgr[0, 0, 0]) for f in frames] == [1, 2, 3]  # type: ignore[index]
-    t = [f.timestamp_s for f in frames]
+    assert [f.skipped_before for f in frames] == [0, 0, 0]  # the consumer keeps up
+    # unplugged: frames without a picture say why, then the camera is reopened
+    lost = next(it)
+    assert lost.color_bgr is None
+    assert lost.link_lost_reason == "camera disconnected"
+    again = next(it)
+    assert src.reconnects == 1
+    assert int(again.color_bgr[0, 0, 0]) == 1  # type: ignore[index]
+    t = [f.timestamp_s for f in [*frames, lost, again]]
     assert t[0] == 0.0
     assert t == sorted(t)
+    it.close()
     before = FakeCapture.released
     with src:
         pass
     assert FakeCapture.released == before + 1
     with pytest.raises(SourceError, match="already closed"):
         next(src.frames())
+
+
+def test_slow_consumer_gets_the_newest_frame(monkeypatch: pytest.MonkeyPatch) -> None:
+    class Fast(FakeCapture):
+        period_s = 0.002
+
+        def __init__(self, index: int) -> None:
+            super().__init__(index, n=10_000)
+
+    monkeypatch.setattr(camera_live.cv2, "VideoCapture", Fast)
+    src = CameraSource(0)
+    it = src.frames()
+    got = []
+    for _ in range(6):
+        got.append(next(it))
+        time.sleep(0.03)  # a tracker slower than the camera
+    it.close()
+    src.close()
+    assert sum(f.skipped_before for f in got[1:]) >= 5 * 3
+    values = [int(f.color_bgr[0, 0, 0]) for f in got]  # type: ignore[index]
+    assert values == sorted(values)
 
 
 def test_fake_device_size_checked_against_intrinsics(monkeypatch: pytest.MonkeyPatch) -> None:
