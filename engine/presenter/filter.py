@@ -2,8 +2,9 @@
 
 - prediction, eq. (1): s_t = s_{t-1} + v_t, v ~ N(0, diag(sigma_x^2, sigma_y^2, sigma_h^2));
 - deterministic (systematic) resampling over the previous weights every frame (the paper's
-  ref. [10]); the output particle count may differ from the input (a count change mid-run,
-  or the larger diffuse set used while re-acquiring);
+  ref. [10]; :func:`engine.particles.systematic_resample`, shared with the beacon filter); the
+  output particle count may differ from the input (a count change mid-run, or the larger
+  diffuse set used while re-acquiring);
 - weights from the fused likelihood, eq. (5), normalised to sum 1;
 - output: the weighted mean state, eq. (6).
 """
@@ -14,21 +15,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 F64 = NDArray[np.float64]
-
-
-def systematic_resample(weights: F64, n_out: int, rng: np.random.Generator) -> NDArray[np.intp]:
-    """Indices of ``n_out`` particles drawn by systematic resampling.
-
-    One uniform offset u ~ U[0, 1/n_out) and the comb u + k/n_out through the cumulative
-    weights: particle i is drawn n_out*w_i times on average (exactly floor or ceil of it).
-    """
-    w = np.asarray(weights, dtype=np.float64)
-    total = w.sum()
-    w = np.full(len(w), 1.0 / len(w)) if not np.isfinite(total) or total <= 0 else w / total
-    cdf = np.cumsum(w)
-    cdf[-1] = 1.0
-    comb = (rng.random() + np.arange(n_out)) / n_out
-    return np.searchsorted(cdf, comb, side="right").astype(np.intp)
 
 
 def predict(particles: F64, sigma_xyh: tuple[float, float, float], rng: np.random.Generator,

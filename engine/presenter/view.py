@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.particles import systematic_resample
 from engine.presenter import filter as pf
 from engine.presenter.extent import measure_extent
 from engine.presenter.jitter import JitterFilter
@@ -265,7 +266,7 @@ class ViewTracker:
                                                p.n_particles, self.rng)
             self.particles[0] = self._init_xyh
         elif self.state == TRACKING:
-            idx = pf.systematic_resample(self.weights, p.n_particles, self.rng)
+            idx = systematic_resample(self.weights, p.n_particles, self.rng)
             self.particles = pf.predict(self.particles[idx], self.sigma_xyh(h_ref), self.rng,
                                         self.h_limits)
             # constant-velocity drift on top of eq. (1)'s random walk
@@ -274,7 +275,7 @@ class ViewTracker:
             # search: half a fresh diffuse prior, half resampled from the last search
             n = p.reinit_particles
             n_keep = n // 2
-            idx = pf.systematic_resample(self.weights, n_keep, self.rng)
+            idx = systematic_resample(self.weights, n_keep, self.rng)
             kept = pf.predict(self.particles[idx], self.sigma_xyh(h_ref), self.rng,
                               self.h_limits)
             # scale of the diffuse prior: the last size, spread only if the scale is free
@@ -329,7 +330,7 @@ class ViewTracker:
                 self.last_good_xyh = mean.copy()
                 self.jitter.reset(mean)
                 # back to the normal particle count around the re-acquired state
-                idx = pf.systematic_resample(self.weights, p.n_particles, self.rng)
+                idx = systematic_resample(self.weights, p.n_particles, self.rng)
                 self.particles = self.particles[idx]
                 self.weights = np.full(p.n_particles, 1.0 / p.n_particles)
 

@@ -7,8 +7,6 @@ import socket
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from engine.presenter import PresenterError
 from engine.presenter import filter as pf
@@ -32,29 +30,6 @@ from engine.presenter.model import (
 )
 from engine.presenter.scene import presenter_frames
 from engine.presenter.twoview import calibrate_floor, fuse
-
-
-@settings(max_examples=40, deadline=None)
-@given(st.lists(st.floats(0.0, 1.0), min_size=2, max_size=30).filter(lambda w: sum(w) > 1e-3),
-       st.integers(0, 2**31 - 1))
-def test_systematic_resampling_keeps_the_weights_expectation(w: list[float], seed: int) -> None:
-    weights = np.asarray(w) / np.sum(w)
-    n_out = 200
-    idx = pf.systematic_resample(weights, n_out, np.random.default_rng(seed))
-    counts = np.bincount(idx, minlength=len(weights))
-    # systematic resampling: each count is floor or ceil of n_out * w_i (unbiased)
-    assert np.all(np.abs(counts - n_out * weights) < 1.0 + 1e-9)
-    assert counts.sum() == n_out
-
-
-def test_resampling_mean_is_unbiased_over_seeds() -> None:
-    rng = np.random.default_rng(0)
-    weights = rng.random(7)
-    weights /= weights.sum()
-    values = rng.normal(size=7)
-    means = [values[pf.systematic_resample(weights, 10, np.random.default_rng(s))].mean()
-             for s in range(4000)]
-    assert np.mean(means) == pytest.approx(float(weights @ values), abs=0.01)
 
 
 def test_weighted_mean_and_prediction() -> None:
