@@ -64,7 +64,7 @@ class BeaconsPage(QWidget):
     def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         from app.engine_bridge import EngineBridge
-        from engine.beacons.model import BeaconFilterParams
+        from engine.beacons.params import BeaconFilterParams
         from engine.beacons.simulator import PAPER_LAYOUT
         from widgets.param_form import ParamForm
 

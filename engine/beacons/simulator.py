@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.errors import ParamsError
+from engine.params import Params, param
 
 F64 = NDArray[np.float64]
 
@@ -55,35 +56,16 @@ def paper_camera_path(n_steps: int = 120, speed_m: float = 0.15) -> F64:
 
 
 @dataclass(frozen=True, slots=True)
-class SimConfig:
+class SimConfig(Params):
     """Simulator settings (noise in metres, probabilities per reading)."""
 
-    n_steps: int = field(default=120, metadata={"help": "time steps after the start", "min": 1})
-    speed_m: float = field(default=0.15, metadata={"help": "camera step length (m)", "min": 0.0})
-    noise_sigma_m: float = field(default=0.1, metadata={"help": "range noise std (m)", "min": 0.0})
-    dropout_prob: float = field(
-        default=0.0, metadata={"help": "probability a reading is missing", "min": 0.0, "max": 1.0}
-    )
-    outlier_prob: float = field(
-        default=0.0, metadata={"help": "probability a reading is an outlier", "min": 0.0,
-                               "max": 1.0}
-    )
-    outlier_max_m: float = field(
-        default=40.0, metadata={"help": "outliers are uniform in [0, this] (m)", "min": 0.0}
-    )
-    seed: int = field(default=0, metadata={"help": "random seed"})
-
-    def __post_init__(self) -> None:
-        if self.n_steps < 1:
-            raise ParamsError(f"n_steps must be >= 1, got {self.n_steps}")
-        for name in ("speed_m", "noise_sigma_m", "outlier_max_m"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise ParamsError(f"{name} must be finite and >= 0, got {v}")
-        for name in ("dropout_prob", "outlier_prob"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and 0.0 <= v <= 1.0):
-                raise ParamsError(f"{name} must be in [0, 1], got {v}")
+    n_steps: int = param(120, lo=1, help="time steps after the start")
+    speed_m: float = param(0.15, lo=0.0, help="camera step length (m)")
+    noise_sigma_m: float = param(0.1, lo=0.0, help="range noise std (m)")
+    dropout_prob: float = param(0.0, lo=0.0, hi=1.0, help="probability a reading is missing")
+    outlier_prob: float = param(0.0, lo=0.0, hi=1.0, help="probability a reading is an outlier")
+    outlier_max_m: float = param(40.0, lo=0.0, help="outliers are uniform in [0, this] (m)")
+    seed: int = param(0, help="random seed")
 
 
 @dataclass(frozen=True, slots=True)

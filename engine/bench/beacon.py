@@ -8,7 +8,7 @@ mirrored map fits every quadrant). So two settings are run side by side:
 A. **The paper's experiment** (top-level ``with_ma`` / ``without_ma``): 4 beacons A(10, 10),
    B(22, 0), C(-12, -16), D(5, 15), 120 steps, 200 particles, quadrant-only initialisation
    with the multi-hypothesis start-up (each beacon a mixture of bearings on its first-range
-   circle until the path turns) and the gauge-aligned estimate (``engine.beacons.model``).
+   circle until the path turns) and the gauge-aligned estimate (``engine.beacons.filter``).
    ``path_rmse`` / ``beacon_err_final`` are measured after the best rotation/reflection about
    the start (one per run, fitted on path and final beacons together, like ATE alignment);
    the unaligned numbers are given as ``*_raw``. ``startup_fix`` compares, on the same data,
@@ -75,7 +75,7 @@ def align_rot_reflect(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
 
 def run_once(params: Any, seed: int, sim_cfg: Any, layout: dict[str, tuple[float, float]]
              ) -> dict[str, Any]:
-    from engine.beacons.model import BeaconSlamFilter
+    from engine.beacons.filter import BeaconSlamFilter
     from engine.beacons.simulator import simulate
 
     sim = simulate(layout, replace(sim_cfg, seed=seed))
@@ -145,7 +145,7 @@ def _series(d: dict[str, Any]) -> dict[str, Any]:
 
 def _steps_per_s(params: Any, repeats: int = 5, n_steps: int = 600) -> tuple[float, float]:
     """Median steps/s of the tracker adapter and of the bare filter at ``params``."""
-    from engine.beacons.model import BeaconSlamFilter
+    from engine.beacons.filter import BeaconSlamFilter
     from engine.beacons.simulator import PAPER_LAYOUT, SimConfig, simulate
     from engine.sources.beacons import BeaconSimSource
     from engine.trackers.beacon_slam import BeaconSlamTracker
@@ -287,7 +287,7 @@ def _sweep(base: Any, grid: tuple[int, ...], seeds: range, sim_cfg: Any,
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    from engine.beacons.model import BeaconFilterParams
+    from engine.beacons.params import BeaconFilterParams
     from engine.beacons.simulator import PAPER_LAYOUT, SimConfig
 
     n_seeds = max(2, int(args.seeds) if not args.quick else min(int(args.seeds), 4))

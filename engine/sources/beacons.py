@@ -294,7 +294,7 @@ def _split_path_options(rest: str, kind: str) -> tuple[str, dict[str, str]]:
 
 def open_beacon_source(kind: str, rest: str) -> Source:
     """Open ``beacons`` / ``beacons-csv`` / ``beacons-udp`` specs (called by ``open_source``)."""
-    from engine.sources import parse_options
+    from engine.sources.base import parse_options
 
     if kind == "beacons":
         return BeaconSimSource.from_options(parse_options(rest))

@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from engine.beacons.model import BeaconFilterParams, BeaconSlamFilter
+from engine.beacons.filter import BeaconSlamFilter
+from engine.beacons.params import BeaconFilterParams
 from engine.frames import Frame
 from engine.trackers.base import TrackerSpec, TrackResult, TrackState
 

@@ -7,23 +7,19 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
-from engine.beacons.model import (
-    BeaconFilterParams,
-    BeaconSlamFilter,
-    liu_west_roughen,
-    map_adjustment,
+from engine.beacons.cloud import liu_west_roughen, weighted_mean_cov
+from engine.beacons.filter import BeaconSlamFilter
+from engine.beacons.likelihood import (
     marginal_range_sigma,
     normalise_log_weights,
     predicted_ranges,
     range_log_likelihood,
-    systematic_resample,
-    trilaterate,
-    weighted_mean_cov,
 )
+from engine.beacons.map_adjustment import map_adjustment
+from engine.beacons.params import BeaconFilterParams
 from engine.beacons.simulator import PAPER_LAYOUT, SimConfig, paper_camera_path, simulate
+from engine.beacons.startup import trilaterate
 from engine.errors import ParamsError
 
 
@@ -87,21 +83,7 @@ def test_map_adjustment_moves_estimates_toward_consistency_in_the_filter() -> No
     assert float(np.mean(np.linalg.norm(beacons - truth[None], axis=2))) < 3.0 * math.sqrt(2)
 
 
-# ---------------------------------------------------------------- weights and resampling
-@settings(max_examples=30, deadline=None)
-@given(st.lists(st.floats(0.0, 10.0), min_size=2, max_size=40), st.integers(0, 2**31 - 1))
-def test_systematic_resampling_preserves_the_distribution(raw: list[float], seed: int) -> None:
-    w = np.asarray(raw) + 1e-3
-    w = w / w.sum()
-    n_out = 500
-    idx = systematic_resample(w, n_out, np.random.default_rng(seed))
-    counts = np.bincount(idx, minlength=len(w))
-    # systematic resampling: every particle gets floor or ceil of n_out * w copies
-    assert np.all(np.abs(counts - n_out * w) < 1.0 + 1e-9)
-    x = np.linspace(-3.0, 7.0, len(w))
-    assert abs(x[idx].mean() - float(w @ x)) < 10.0 / n_out * 2
-
-
+# ---------------------------------------------------------------- weights
 def test_normalised_weights_sum_to_one_even_for_tiny_likelihoods() -> None:
     w = normalise_log_weights(np.array([-1e5, -1e5 - 1.0, -1e5 - 50.0]))
     assert w.sum() == pytest.approx(1.0)
