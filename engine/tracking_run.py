@@ -254,13 +254,17 @@ def _convert(text: str, hint: Any, key: str) -> Any:
 def apply_param_overrides(params: Any, items: list[str] | tuple[str, ...]) -> Any:
     """``params`` with ``key=value`` overrides, each converted to its dataclass field's type.
 
-    An unknown key or a value of the wrong type raises :class:`engine.errors.ParamsError`
-    naming it; the dataclass's own validation (``__post_init__``) runs on the result.
+    ``preset=NAME`` applies a preset of the params class (:meth:`engine.params.Params.
+    with_preset`) first, whatever its position, so ``preset=paper n_particles=50`` is the
+    paper's settings with 50 particles. An unknown key, preset or a value of the wrong type
+    raises :class:`engine.errors.ParamsError` naming it; the dataclass's own validation
+    (``__post_init__``) runs on the result.
     """
     import dataclasses
     import typing
 
     from engine.errors import ParamsError
+    from engine.params import PRESET_KEY, Params
 
     if not items:
         return params
@@ -270,16 +274,28 @@ def apply_param_overrides(params: Any, items: list[str] | tuple[str, ...]) -> An
         hints = typing.get_type_hints(cls)
     except (NameError, TypeError):  # a class defined in a function: fall back per field
         hints = {}
-    changes: dict[str, Any] = {}
+    pairs: list[tuple[str, str]] = []
     for item in items:
         key, sep, value = item.partition("=")
         key = key.strip()
         if not sep or not key:
             raise ParamsError(f"--param {item!r} is not key=value")
+        pairs.append((key, value))
+    for key, value in pairs:
+        if key == PRESET_KEY and key not in fields:
+            if not isinstance(params, Params) or not cls.PRESETS:
+                raise ParamsError(f"--param {PRESET_KEY}={value.strip()}: {cls.__name__} has "
+                                  "no presets")
+            params = params.with_preset(value.strip())
+    changes: dict[str, Any] = {}
+    for key, value in pairs:
+        if key == PRESET_KEY and key not in fields:
+            continue
         if key not in fields:
+            extra = [PRESET_KEY] if isinstance(params, Params) and cls.PRESETS else []
             raise ParamsError(
                 f"--param {key}: {cls.__name__} has no such field; "
-                f"valid: {', '.join(sorted(fields))}"
+                f"valid: {', '.join(sorted(fields) + extra)}"
             )
         try:
             hint = hints.get(key, fields[key].type)
@@ -294,7 +310,7 @@ def apply_param_overrides(params: Any, items: list[str] | tuple[str, ...]) -> An
         except ValueError as exc:
             raise ParamsError(f"--param {key}={value}: {exc}") from None
     try:
-        return dataclasses.replace(params, **changes)
+        return dataclasses.replace(params, **changes) if changes else params
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ParamsError):
             raise

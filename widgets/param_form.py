@@ -3,7 +3,11 @@
 One editor per field, chosen from the field's current value: ``bool`` -> check box, ``int`` ->
 spin box, ``float`` -> double spin box, ``Enum`` or ``metadata["choices"]`` -> combo box,
 ``str`` -> line edit, tuples/lists of numbers -> comma-separated line edit. Field metadata gives
-``help`` (tooltip), ``min``, ``max``, ``step`` and optionally ``decimals``/``label``.
+``help`` (tooltip), ``min``, ``max``, ``step`` and optionally ``decimals``/``label``/``unit``
+(what :func:`engine.params.param` writes). A params class with presets
+(:class:`engine.params.Params` ``PRESETS``) gets a *preset* box on top: choosing one applies
+its overrides to the current values; it shows the first preset the values match, else
+"custom".
 
 Every edit builds a candidate with :func:`dataclasses.replace` from the last valid params and
 *all* editor values (so fixing one side of a cross-field rule also applies the other side). If
@@ -36,6 +40,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from engine.params import Params
+
 INT_LIMIT = 2**31 - 1
 UNIT_SUFFIXES = {
     "px": "px",
@@ -54,13 +60,16 @@ INVALID_STYLE = "border: 1px solid #ff4d4f; background: #3a1f22;"
 
 
 def field_label(name: str, metadata: Any) -> str:
-    """``max_depth_m`` -> ``max depth (m)`` unless ``metadata["label"]`` says otherwise."""
+    """``max_depth_m`` -> ``max depth (m)`` unless ``metadata["label"]`` says otherwise; a
+    ``metadata["unit"]`` is shown when the name carries no unit suffix."""
     if "label" in metadata:
         return str(metadata["label"])
     words = name.split("_")
     unit = None
     if len(words) > 1 and words[-1].lower() in UNIT_SUFFIXES:
         unit = UNIT_SUFFIXES[words.pop().lower()]
+    elif metadata.get("unit"):
+        unit = str(metadata["unit"])
     text = " ".join(words)
     return f"{text} ({unit})" if unit else text
 
@@ -116,6 +125,7 @@ class ParamForm(QWidget):
         super().__init__(parent)
         self._params: Any | None = None
         self._editors: dict[str, _Editor] = {}
+        self.preset_box: QComboBox | None = None  # only for params classes with presets
         self._errors: dict[str, str] = {}
         #: editor values as loaded from the last valid params (spin boxes may round)
         self._shown: dict[str, Any] = {}
@@ -184,11 +194,14 @@ class ParamForm(QWidget):
         while self._form.rowCount():
             self._form.removeRow(0)
         self._editors.clear()
+        self.preset_box = None
         params = self._params
         self.title.setText(
             "" if params is None else (type(params).__doc__ or "").strip().split("\n")[0]
         )
         self.title.setVisible(bool(self.title.text()))
+        if isinstance(params, Params) and params.PRESETS:
+            self._add_preset_box(params)
         fields = [] if params is None else [f for f in dataclasses.fields(params) if f.init]
         for f in fields:
             value = getattr(params, f.name)
@@ -208,6 +221,54 @@ class ParamForm(QWidget):
         self._shown = {name: editor.get() for name, editor in self._editors.items()}
         self.empty_label.setVisible(params is not None and not self._editors)
         self.defaults_button.setVisible(bool(self._editors))
+
+    def _add_preset_box(self, params: Params) -> None:
+        box = QComboBox()
+        box.setObjectName("param_preset")
+        box.addItem("custom", None)
+        box.setItemData(0, "values of no preset", Qt.ItemDataRole.ToolTipRole)
+        for name, preset in params.PRESETS.items():
+            box.addItem(name, name)
+            box.setItemData(box.count() - 1, preset.help, Qt.ItemDataRole.ToolTipRole)
+        box.setToolTip("apply a named set of values (the other fields keep theirs)")
+        box.setMinimumWidth(72)
+        label = QLabel("preset")
+        label.setToolTip(box.toolTip())
+        self._form.addRow(label, box)
+        self.preset_box = box
+        self._show_preset()
+        box.currentIndexChanged.connect(self._on_preset)
+
+    def _show_preset(self) -> None:
+        box = self.preset_box
+        if box is None or not isinstance(self._params, Params):
+            return
+        matching = self._params.matching_presets()
+        box.blockSignals(True)
+        try:
+            box.setCurrentIndex(max(0, box.findData(matching[0])) if matching else 0)
+        finally:
+            box.blockSignals(False)
+
+    @Slot()
+    def _on_preset(self) -> None:
+        box = self.preset_box
+        name = None if box is None else box.currentData()
+        if name is None or not isinstance(self._params, Params):
+            return  # "custom": nothing to apply
+        try:
+            candidate = self._params.with_preset(str(name))
+        except Exception as exc:  # a preset the class rejects
+            reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            self._errors = {"preset": reason}
+            self._show_errors()
+            self.edit_rejected.emit(f"preset: {reason}")
+            self._show_preset()
+            return
+        changed = candidate != self._params
+        self.set_params(candidate, rebuild=False)
+        if changed:
+            self.params_changed.emit(candidate)
 
     def _make_editor(self, f: dataclasses.Field[Any], value: Any) -> _Editor | None:
         md = f.metadata
@@ -285,6 +346,7 @@ class ParamForm(QWidget):
             finally:
                 editor.widget.blockSignals(False)
         self._shown = {name: editor.get() for name, editor in self._editors.items()}
+        self._show_preset()
 
     # ------------------------------------------------------------------ edits
     def _candidate(self) -> Any:
@@ -311,6 +373,7 @@ class ParamForm(QWidget):
         self._shown = {n: editor.get() for n, editor in self._editors.items()}
         if candidate is not self._params and candidate != self._params:
             self._params = candidate
+            self._show_preset()
             self.params_changed.emit(candidate)
 
     def _show_errors(self) -> None:

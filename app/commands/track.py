@@ -66,13 +66,26 @@ def _add_tracker_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _params_text(params: object) -> str:
+    """``name = value  # help [range or choices]`` per field, then the class's presets."""
     import dataclasses
+
+    from engine.params import PRESET_KEY, Params
 
     lines = []
     for f in dataclasses.fields(params):  # type: ignore[arg-type]
-        help_ = f.metadata.get("help", "")
+        md = f.metadata
+        help_ = str(md.get("help", ""))
+        if "choices" in md:
+            help_ += f" [{'|'.join(map(str, md['choices']))}]"
+        elif "min" in md or "max" in md:
+            help_ += f" [{md.get('min', '')}..{md.get('max', '')}]"
         line = f"  {f.name} = {getattr(params, f.name)!r}"
-        lines.append(line + (f"  # {help_}" if help_ else ""))
+        lines.append(line + (f"  # {help_.strip()}" if help_.strip() else ""))
+    if isinstance(params, Params) and params.PRESETS:
+        lines.append(f"presets (--param {PRESET_KEY}=NAME):")
+        for name, preset in params.PRESETS.items():
+            values = ", ".join(f"{k}={v!r}" for k, v in preset.values.items())
+            lines.append(f"  {name}: {preset.help} ({values})")
     return "\n".join(lines)
 
 

@@ -421,7 +421,7 @@ class LivePanel(QWidget):
         self.probs: list[np.ndarray] = []
         self.omega: list[float] = []
         self.omega_true: list[float] = []
-        self.form = ParamForm(PtzParams(target_b=40, target_g=40, target_r=210))
+        self.form = ParamForm(PtzParams().with_preset("ptz-sim"))
         self.form.params_changed.connect(self.bridge.set_params)
         self.start_button = QPushButton("Start (ptz-sim)")
         self.start_button.setObjectName("ptz_start")

@@ -32,6 +32,7 @@ from engine.outputs import freed as fd
 from engine.outputs import opentrackio as otio
 from engine.outputs.studio_frame import StudioFrame, StudioPose
 from engine.outputs.timing import DelayCompensator, DelayParams
+from engine.params import Params, param
 
 PROTOCOLS = ("freed", "opentrackio")
 
@@ -85,21 +86,17 @@ def _is_multicast(host: str) -> bool:
 
 
 @dataclass(frozen=True, slots=True)
-class FreeDSettings:
+class FreeDSettings(Params):
     """FreeD camera id and how the zoom/focus fields are filled."""
 
-    camera_id: int = field(default=1, metadata={"help": "FreeD camera id (0-255)", "min": 0,
-                                                "max": 255, "step": 1})
-    lens_mapping: fd.ZoomFocusMapping = fd.ZoomFocusMapping.MM_X100
-    zoom_raw: int = field(default=0, metadata={"help": "zoom field when mapping is raw"})
-    focus_raw: int = field(default=0, metadata={"help": "focus field when mapping is raw"})
+    ERROR = OutputError
 
-    def __post_init__(self) -> None:
-        if not 0 <= self.camera_id <= 255:
-            raise OutputError(f"FreeD camera id {self.camera_id} is outside 0..255")
-        for n in ("zoom_raw", "focus_raw"):
-            if not 0 <= getattr(self, n) <= 0xFFFFFF:
-                raise OutputError(f"FreeD {n} {getattr(self, n)} is outside 0..16777215")
+    camera_id: int = param(1, lo=0, hi=255, step=1, help="FreeD camera id (0-255)")
+    lens_mapping: fd.ZoomFocusMapping = param(
+        fd.ZoomFocusMapping.MM_X100, help="how the zoom and focus fields are filled: the raw "
+        "values below, or focal length and focus distance in mm x 100 / mm x 64")
+    zoom_raw: int = param(0, lo=0, hi=0xFFFFFF, help="zoom field when mapping is raw")
+    focus_raw: int = param(0, lo=0, hi=0xFFFFFF, help="focus field when mapping is raw")
 
 
 @dataclass(frozen=True, slots=True)

@@ -17,49 +17,29 @@ Angles are unwrapped against the previous sample before interpolation so that a 
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from engine.errors import ParamsError
 from engine.outputs.studio_frame import StudioPose, wrap_deg
+from engine.params import Params, param
 
 AXES = ("x", "y", "z", "pan", "tilt", "roll")
 
 
 @dataclass(frozen=True, slots=True)
-class DelayParams:
+class DelayParams(Params):
     """Operator-set output delays (ms) per axis; positive = output lags the tracked pose."""
 
-    x_ms: float = field(default=0.0, metadata={"help": "delay of X (ms)", "min": -200.0,
-                                                "max": 1000.0, "step": 1.0})
-    y_ms: float = field(default=0.0, metadata={"help": "delay of Y (ms)", "min": -200.0,
-                                                "max": 1000.0, "step": 1.0})
-    z_ms: float = field(default=0.0, metadata={"help": "delay of Z (ms)", "min": -200.0,
-                                                "max": 1000.0, "step": 1.0})
-    pan_ms: float = field(default=0.0, metadata={"help": "delay of pan (ms)", "min": -200.0,
-                                                  "max": 1000.0, "step": 1.0})
-    tilt_ms: float = field(default=0.0, metadata={"help": "delay of tilt (ms)", "min": -200.0,
-                                                   "max": 1000.0, "step": 1.0})
-    roll_ms: float = field(default=0.0, metadata={"help": "delay of roll (ms)", "min": -200.0,
-                                                   "max": 1000.0, "step": 1.0})
-    max_extrapolation_ms: float = field(
-        default=50.0,
-        metadata={"help": "longest look-ahead for negative delays (ms)", "min": 0.0,
-                  "max": 200.0, "step": 1.0},
-    )
-
-    def __post_init__(self) -> None:
-        for name in (*(f"{a}_ms" for a in AXES), "max_extrapolation_ms"):
-            v = getattr(self, name)
-            if not isinstance(v, int | float) or not math.isfinite(v):
-                raise ParamsError(f"delay {name} must be a finite number, got {v!r}")
-            if not -200.0 <= v <= 1000.0:
-                raise ParamsError(f"delay {name}={v} ms is outside -200..1000 ms")
-        if self.max_extrapolation_ms < 0:
-            raise ParamsError("max_extrapolation_ms must be >= 0")
+    x_ms: float = param(0.0, lo=-200.0, hi=1000.0, step=1.0, help="delay of X (ms)")
+    y_ms: float = param(0.0, lo=-200.0, hi=1000.0, step=1.0, help="delay of Y (ms)")
+    z_ms: float = param(0.0, lo=-200.0, hi=1000.0, step=1.0, help="delay of Z (ms)")
+    pan_ms: float = param(0.0, lo=-200.0, hi=1000.0, step=1.0, help="delay of pan (ms)")
+    tilt_ms: float = param(0.0, lo=-200.0, hi=1000.0, step=1.0, help="delay of tilt (ms)")
+    roll_ms: float = param(0.0, lo=-200.0, hi=1000.0, step=1.0, help="delay of roll (ms)")
+    max_extrapolation_ms: float = param(50.0, lo=0.0, hi=200.0, step=1.0,
+                                        help="longest look-ahead for negative delays (ms)")
 
     @staticmethod
     def uniform(ms: float) -> DelayParams:

@@ -14,12 +14,14 @@ import math
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
 from engine.frames import Frame
+from engine.params import Params, param
 from engine.ptz.control import StepLimits, quantise
 from engine.ptz.kinematics import PtzHead
 from engine.sources.base import Source, SourceSpec, parse_options
@@ -28,26 +30,31 @@ F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
-class CircleScenario:
+class CircleScenario(Params):
     """Ball on a horizontal circle; defaults put it 2-7 m from the camera."""
 
-    centre_world_m: tuple[float, float, float] = (0.0, 4.5, 1.0)
-    radius_m: float = 2.5
-    period_s: float = 50.0  # omega = 2 pi / 50: model 1 of the paper's bank
-    ball_radius_m: float = 0.1
-    ball_bgr: tuple[int, int, int] = (40, 40, 210)
-    fps: float = 30.0
-    duration_s: float = 60.0
-    phase0_rad: float = -math.pi / 2  # start nearest the camera
-    width: int = 640
-    height: int = 480
-    f_px: float = 800.0
-    camera_height_m: float = 1.5
-    optical_offset_m: float = 0.04  # optical centre ahead of the rotation centre
-    pan_step_deg: float = 1.0
-    tilt_step_deg: float = 1.0
-    noise_sigma: float = 2.0
-    seed: int = 3
+    centre_world_m: tuple[float, float, float] = param(
+        (0.0, 4.5, 1.0), help="centre of the ball's circle, world frame (m)")
+    radius_m: float = param(2.5, lo=0.0, help="radius of the ball's circle (m)")
+    period_s: float = param(50.0, help="time of one circle (s); omega = 2 pi / 50 is model 1 "
+                            "of the paper's bank")
+    ball_radius_m: float = param(0.1, lo=0.0, help="ball radius (m)")
+    ball_bgr: tuple[int, int, int] = param((40, 40, 210), lo=0, hi=255,
+                                           help="ball colour (blue, green, red)")
+    fps: float = param(30.0, help="frame rate (Hz)")
+    duration_s: float = param(60.0, help="length of the run (s)")
+    phase0_rad: float = param(-math.pi / 2, help="start angle on the circle (rad): -pi/2 "
+                              "starts nearest the camera")
+    width: int = param(640, lo=1, help="image width (px)")
+    height: int = param(480, lo=1, help="image height (px)")
+    f_px: float = param(800.0, lo=1.0, help="focal length (px)")
+    camera_height_m: float = param(1.5, help="height of the head's rotation centre (m)")
+    optical_offset_m: float = param(0.04, help="optical centre ahead of the rotation centre "
+                                    "(m)")
+    pan_step_deg: float = param(1.0, lo=1e-3, help="pan motor step (deg)")
+    tilt_step_deg: float = param(1.0, lo=1e-3, help="tilt motor step (deg)")
+    noise_sigma: float = param(2.0, lo=0.0, help="image noise std (grey levels)")
+    seed: int = param(3, help="random seed of the image noise")
 
     @property
     def omega_rad_s(self) -> float:
@@ -216,7 +223,7 @@ def open_ptz_sim(options: dict[str, str]) -> PtzSimSource:
     keys = {"duration": "duration_s", "period": "period_s", "radius": "radius_m",
             "fps": "fps", "seed": "seed", "ball": "ball_radius_m", "noise": "noise_sigma",
             "f": "f_px"}
-    kw: dict[str, object] = {}
+    kw: dict[str, Any] = {}
     latency = 1
     for k, v in options.items():
         try:
@@ -231,7 +238,7 @@ def open_ptz_sim(options: dict[str, str]) -> PtzSimSource:
         except ValueError:
             raise SourceError(f"ptz-sim option {k}={v!r} is not a number") from None
     try:
-        sc = CircleScenario(**kw)  # type: ignore[arg-type]
+        sc = CircleScenario(**kw)
     except (TypeError, ValueError) as exc:
         raise SourceError(f"ptz-sim: {exc}") from None
     if sc.duration_s <= 0 or sc.fps <= 0 or sc.period_s <= 0:

@@ -14,11 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from engine.frames import Frame
+from engine.params import Params
 from engine.trackers.base import TrackerSpec, TrackResult, TrackState
 
 
 @dataclass(frozen=True, slots=True)
-class GroundTruthParams:
+class GroundTruthParams(Params):
     """No parameters: the pose is the source's ground truth."""
 
 

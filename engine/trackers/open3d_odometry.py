@@ -12,52 +12,36 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.errors import ParamsError, TrackerError
+from engine.errors import TrackerError
 from engine.frames import Frame
+from engine.params import Params, param
 from engine.trackers.base import TrackerSpec, TrackResult, TrackState
 
 F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
-class Open3DOdometryParams:
+class Open3DOdometryParams(Params):
     """Settings of Open3D's RGB-D odometry (iteration schedule is Open3D's default 20/10/5)."""
 
-    jacobian: str = field(
-        default="hybrid",
-        metadata={"help": "hybrid (colour + depth) or color (photometric only)",
-                  "choices": ("hybrid", "color")},
-    )
-    max_depth_m: float = field(
-        default=4.0, metadata={"help": "ignore depth beyond this (m)", "min": 0.1, "max": 20.0}
-    )
-    max_depth_diff_m: float = field(
-        default=0.07, metadata={"help": "max depth difference of a correspondence (m)",
-                                "min": 0.001, "max": 1.0}
-    )
-    max_translation_m: float = field(
-        default=0.15, metadata={"help": "reject per-frame moves longer than this", "min": 0.001}
-    )
-    max_rotation_deg: float = field(
-        default=15.0, metadata={"help": "reject per-frame turns larger than this", "min": 0.1}
-    )
-    start_at_ground_truth: bool = field(
-        default=True, metadata={"help": "start at the first frame's ground-truth pose if known"}
-    )
-
-    def __post_init__(self) -> None:
-        if self.jacobian not in ("hybrid", "color"):
-            raise ParamsError(f"jacobian must be 'hybrid' or 'color', got {self.jacobian!r}")
-        for name in ("max_depth_m", "max_depth_diff_m", "max_translation_m", "max_rotation_deg"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ParamsError(f"{name} must be a positive number, got {v}")
+    jacobian: str = param("hybrid", choices=("hybrid", "color"),
+                          help="hybrid (colour + depth) or color (photometric only)")
+    max_depth_m: float = param(4.0, lo=0.1, hi=20.0, help="ignore depth beyond this (m)")
+    max_depth_diff_m: float = param(0.07, lo=0.001, hi=1.0,
+                                    help="max depth difference of a correspondence (m)")
+    max_translation_m: float = param(0.15, lo=0.001,
+                                     help="reject per-frame moves longer than this (m)")
+    max_rotation_deg: float = param(15.0, lo=0.1,
+                                    help="reject per-frame turns larger than this (deg)")
+    start_at_ground_truth: bool = param(True,
+                                        help="start at the first frame's ground-truth pose if "
+                                        "known")
 
 
 class Open3DOdometryTracker:

@@ -6,24 +6,25 @@ reports a failure the box holds its last value and the state is LOST.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from engine.errors import ParamsError, TrackerError
 from engine.frames import Frame
+from engine.params import Params, param
 from engine.trackers.base import Overlay, TrackerSpec, TrackResult, TrackState
 
 
 @dataclass(frozen=True, slots=True)
-class OpenCVBoxParams:
+class OpenCVBoxParams(Params):
     """OpenCV trackers run with their library defaults; only the initial box can be given."""
 
-    init_box_xywh: tuple[float, float, float, float] | None = field(
-        default=None, metadata={"help": "initial box; None = the first frame's ground truth"})
+    init_box_xywh: tuple[float, float, float, float] | None = param(
+        None, help="initial box; None = the first frame's ground truth")
 
-    def __post_init__(self) -> None:
+    def validate(self) -> None:
         b = self.init_box_xywh
         if b is not None and (len(b) != 4 or b[2] <= 0 or b[3] <= 0):
             raise ParamsError(f"init_box_xywh must be x,y,w,h with w,h > 0, got {b}")

@@ -18,9 +18,8 @@ is set, which remaps colour and depth to the pinhole model first.
 
 from __future__ import annotations
 
-import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -29,6 +28,7 @@ from numpy.typing import NDArray
 from engine.camera import Intrinsics
 from engine.errors import ParamsError
 from engine.frames import Frame, readonly
+from engine.params import Params, param
 from engine.trackers.base import TrackerSpec, TrackResult, TrackState
 
 F64 = NDArray[np.float64]
@@ -37,86 +37,40 @@ ALGORITHMS = ("rgb_depth", "icp", "rgb")
 
 
 @dataclass(frozen=True, slots=True)
-class OpenCVOdometryParams:
+class OpenCVOdometryParams(Params):
     """Settings of OpenCV's RGB-D odometry (defaults are OpenCV 5's own).
 
     Pyramid iteration counts (7, 7, 7, 10) and gradient thresholds are OpenCV's defaults and
     not settable (see ``_build``).
     """
 
-    algorithm: str = field(
-        default="rgb_depth",
-        metadata={
-            "help": "rgb_depth (photometric + ICP, OdometryType_RGB_DEPTH), "
-            "icp (depth only, OdometryType_DEPTH) or rgb (photometric, OdometryType_RGB)",
-            "choices": ALGORITHMS,
-        },
-    )
-    min_depth_m: float = field(
-        default=0.0, metadata={"help": "ignore depth below this (m)", "min": 0.0, "max": 10.0}
-    )
-    max_depth_m: float = field(
-        default=4.0, metadata={"help": "ignore depth above this (m)", "min": 0.1, "max": 20.0}
-    )
-    max_depth_diff_m: float = field(
-        default=0.07,
-        metadata={"help": "max depth difference of a correspondence (m)", "min": 0.001},
-    )
-    max_points_part: float = field(
-        default=0.07,
-        metadata={"help": "fraction of pixels used (ICP)", "min": 0.001, "max": 1.0},
-    )
-    max_translation_m: float = field(
-        default=0.15,
-        metadata={"help": "reject frame-to-frame motions longer than this (m)", "min": 0.001},
-    )
-    max_rotation_deg: float = field(
-        default=15.0,
-        metadata={"help": "reject frame-to-frame rotations larger than this (deg)", "min": 0.1},
-    )
-    start_at_ground_truth: bool = field(
-        default=True,
-        metadata={"help": "start at the first frame's ground-truth pose when the source has one"},
-    )
-    undistort: bool = field(
-        default=False,
-        metadata={"help": "remap colour and depth to the pinhole model before odometry"},
-    )
-    reanchor_after_lost: int = field(
-        default=5,
-        metadata={
-            "help": "consecutive failures after which the reference moves to the current frame",
-            "min": 1,
-            "max": 1000,
-        },
-    )
+    algorithm: str = param("rgb_depth", choices=ALGORITHMS,
+                           help="rgb_depth (photometric + ICP, OdometryType_RGB_DEPTH), icp "
+                           "(depth only, OdometryType_DEPTH) or rgb (photometric, "
+                           "OdometryType_RGB)")
+    min_depth_m: float = param(0.0, lo=0.0, hi=10.0, help="ignore depth below this (m)")
+    max_depth_m: float = param(4.0, lo=0.1, hi=20.0, help="ignore depth above this (m)")
+    max_depth_diff_m: float = param(0.07, lo=0.001,
+                                    help="max depth difference of a correspondence (m)")
+    max_points_part: float = param(0.07, lo=0.001, hi=1.0, help="fraction of pixels used (ICP)")
+    max_translation_m: float = param(0.15, lo=0.001,
+                                     help="reject frame-to-frame motions longer than this (m)")
+    max_rotation_deg: float = param(15.0, lo=0.1,
+                                    help="reject frame-to-frame rotations larger than this (deg)")
+    start_at_ground_truth: bool = param(True,
+                                        help="start at the first frame's ground-truth pose when "
+                                        "the source has one")
+    undistort: bool = param(False,
+                            help="remap colour and depth to the pinhole model before odometry")
+    reanchor_after_lost: int = param(5, lo=1, hi=1000,
+                                     help="consecutive failures after which the reference moves "
+                                     "to the current frame")
 
-    def __post_init__(self) -> None:
-        if self.algorithm not in ALGORITHMS:
-            raise ParamsError(
-                f"algorithm {self.algorithm!r} is not one of {', '.join(ALGORITHMS)}"
-            )
-        for name in (
-            "min_depth_m",
-            "max_depth_m",
-            "max_depth_diff_m",
-            "max_points_part",
-            "max_translation_m",
-            "max_rotation_deg",
-        ):
-            v = getattr(self, name)
-            if not math.isfinite(v) or v < 0:
-                raise ParamsError(f"{name} must be a finite number >= 0, got {v}")
+    def validate(self) -> None:
         if self.max_depth_m <= self.min_depth_m:
             raise ParamsError(
                 f"max_depth_m ({self.max_depth_m}) must exceed min_depth_m ({self.min_depth_m})"
             )
-        if not 0 < self.max_points_part <= 1:
-            raise ParamsError(f"max_points_part must be in (0, 1], got {self.max_points_part}")
-        if self.max_translation_m <= 0 or self.max_rotation_deg <= 0:
-            raise ParamsError("max_translation_m and max_rotation_deg must be positive")
-        if self.reanchor_after_lost < 1:
-            raise ParamsError(f"reanchor_after_lost must be >= 1, got {self.reanchor_after_lost}")
 
 
 class OpenCVOdometryTracker:

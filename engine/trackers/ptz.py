@@ -17,77 +17,73 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
 from engine.errors import ParamsError
 from engine.frames import Frame
+from engine.params import Params, Preset, param
+from engine.ptz.sim import CircleScenario
 from engine.trackers.base import Overlay, TrackerSpec, TrackResult, TrackState
 
+_SIM = CircleScenario()
 PAPER_OMEGAS = tuple(2.0 * math.pi / 50.0 * j for j in range(4))
 
 
 @dataclass(frozen=True, slots=True)
-class PtzParams:
+class PtzParams(Params):
     """Target colour and size, snake (eq. (2)), MMAE bank, noise (Q, R) and pan/tilt control."""
 
-    target_b: int = field(default=0, metadata={"help": "target colour blue", "min": 0, "max": 255})
-    target_g: int = field(default=0, metadata={"help": "target colour green", "min": 0,
-                                               "max": 255})
-    target_r: int = field(default=255, metadata={"help": "target colour red", "min": 0,
-                                                 "max": 255})
-    target_radius_m: float = field(default=0.1, metadata={
-        "help": "known target radius (m): gives the distance d (sec. 4.2)", "min": 0.005,
-        "max": 2.0, "step": 0.005})
-    snake_alpha: float = field(default=0.5, metadata={"help": "snake tension alpha, eq. (2)",
-                                                      "min": 0.0, "max": 10.0, "step": 0.05})
-    snake_beta: float = field(default=0.05, metadata={"help": "snake rigidity beta, eq. (2)",
-                                                      "min": 0.0, "max": 10.0, "step": 0.01})
-    external_force: str = field(default="gradient", metadata={
-        "help": "snake external force: gradient or gvf", "choices": ("gradient", "gvf")})
-    centre_method: str = field(default="moments", metadata={
-        "help": "contour (paper: mean of contour points) or moments (colour mass in snake)",
-        "choices": ("contour", "moments")})
-    omega_max_rad_s: float = field(default=2.0 * math.pi / 50.0 * 3, metadata={
-        "help": "largest model turn rate; models at 0..max evenly (paper: 2pi/50*[0..3])",
-        "min": 0.0, "max": 10.0, "step": 0.01})
-    n_models: int = field(default=4, metadata={"help": "number of MMAE models", "min": 1,
-                                               "max": 16})
-    q_jerk_psd: float = field(default=1e-4, metadata={
-        "help": "process noise: white-jerk PSD per axis (m^2/s^5)", "min": 1e-10, "max": 100.0,
-        "step": 1e-5})
-    sigma_uv_px: float = field(default=0.3, metadata={
-        "help": "measurement noise of u, v (px)", "min": 0.01, "max": 50.0, "step": 0.05})
-    sigma_d_rel: float = field(default=0.01, metadata={
-        "help": "measurement noise of d relative to d", "min": 1e-4, "max": 1.0, "step": 0.001})
-    min_model_prob: float = field(default=0.0, metadata={
-        "help": "floor of model probabilities (0 = paper's MMAE)", "min": 0.0, "max": 0.2,
-        "step": 1e-4})
-    nis_reset: float = field(default=25.0, metadata={
-        "help": "re-initialise when the mean NIS over 15 updates exceeds this", "min": 3.0,
-        "max": 1e6})
-    control: bool = field(default=True, metadata={"help": "send pan/tilt commands"})
-    deadband_px: float = field(default=40.0, metadata={
-        "help": "re-centre when the target is this far from the image centre (px)", "min": 0.0,
-        "max": 1000.0})
+    target_b: int = param(0, lo=0, hi=255, help="target colour blue")
+    target_g: int = param(0, lo=0, hi=255, help="target colour green")
+    target_r: int = param(255, lo=0, hi=255, help="target colour red")
+    target_radius_m: float = param(0.1, lo=0.005, hi=2.0, step=0.005,
+                                   help="known target radius (m): gives the distance d (sec. 4.2)")
+    snake_alpha: float = param(0.5, lo=0.0, hi=10.0, step=0.05,
+                               help="snake tension alpha, eq. (2)")
+    snake_beta: float = param(0.05, lo=0.0, hi=10.0, step=0.01,
+                              help="snake rigidity beta, eq. (2)")
+    external_force: str = param("gradient", choices=("gradient", "gvf"),
+                                help="snake external force: gradient or gvf")
+    centre_method: str = param("moments", choices=("contour", "moments"),
+                               help="contour (paper: mean of contour points) or moments (colour "
+                               "mass in snake)")
+    omega_max_rad_s: float = param(2.0 * math.pi / 50.0 * 3, lo=0.0, hi=10.0, step=0.01,
+                                   help="largest model turn rate; models at 0..max evenly "
+                                   "(paper: 2pi/50*[0..3])")
+    n_models: int = param(4, lo=1, hi=16, help="number of MMAE models")
+    q_jerk_psd: float = param(1e-4, lo=1e-10, hi=100.0, step=1e-5,
+                              help="process noise: white-jerk PSD per axis (m^2/s^5)")
+    sigma_uv_px: float = param(0.3, lo=0.01, hi=50.0, step=0.05,
+                               help="measurement noise of u, v (px)")
+    sigma_d_rel: float = param(0.01, lo=1e-4, hi=1.0, step=0.001,
+                               help="measurement noise of d relative to d")
+    min_model_prob: float = param(0.0, lo=0.0, hi=0.2, step=1e-4,
+                                  help="floor of model probabilities (0 = paper's MMAE)")
+    nis_reset: float = param(25.0, lo=3.0, hi=1e6,
+                             help="re-initialise when the mean NIS over 15 updates exceeds this")
+    control: bool = param(True, help="send pan/tilt commands")
+    deadband_px: float = param(40.0, lo=0.0, hi=1000.0,
+                               help="re-centre when the target is this far from the image centre "
+                               "(px)")
 
-    def __post_init__(self) -> None:
-        if self.external_force not in ("gradient", "gvf"):
-            raise ParamsError(f"external_force {self.external_force!r}: gradient or gvf")
-        if self.centre_method not in ("contour", "moments"):
-            raise ParamsError(f"centre_method {self.centre_method!r}: contour or moments")
-        if self.target_radius_m <= 0:
-            raise ParamsError(f"target_radius_m must be positive, got {self.target_radius_m}")
-        if self.n_models < 1:
-            raise ParamsError(f"n_models must be >= 1, got {self.n_models}")
-        for name in ("q_jerk_psd", "sigma_uv_px", "sigma_d_rel"):
-            if not getattr(self, name) > 0:
-                raise ParamsError(f"{name} must be positive, got {getattr(self, name)}")
+    #: the built-in ``ptz-sim`` source's ball (the Pan-tilt page starts on it)
+    PRESETS: ClassVar[Mapping[str, Preset]] = {
+        "ptz-sim": Preset(
+            f"target colour (BGR {_SIM.ball_bgr}) and radius ({_SIM.ball_radius_m} m) of the "
+            "ball of the built-in ptz-sim source",
+            target_b=_SIM.ball_bgr[0], target_g=_SIM.ball_bgr[1], target_r=_SIM.ball_bgr[2],
+            target_radius_m=_SIM.ball_radius_m),
+    }
+
+    def validate(self) -> None:
         b, g, r = self.target_bgr
         if max(b, g, r) - min(b, g, r) < 30:
-            raise ParamsError(f"target colour {self.target_bgr} is too grey to segment")
+            raise ParamsError(f"PtzParams: target colour {self.target_bgr} is too grey to "
+                              "segment")
 
     @property
     def target_bgr(self) -> tuple[int, int, int]:
