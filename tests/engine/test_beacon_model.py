@@ -299,3 +299,33 @@ def test_ring_start_up_finds_the_map_shape_the_point_start_up_misses() -> None:
     point = err(BeaconFilterParams(hint_sigma_m=0.0, ring_hypotheses=0))
     assert ring < 2.0
     assert point > 2.0 * ring
+
+
+# ---------------------------------------------------------------- extension switches
+def test_every_extension_switch_is_live_and_its_off_value_valid() -> None:
+    """Each entry of EXTENSIONS turns a live part of the filter off (the ablation's switches):
+    on a run where the extension is on, switching it off changes the estimate."""
+    from engine.beacons.params import EXTENSIONS
+
+    on_values: dict[str, dict[str, object]] = {  # where an extension is off by default
+        "annealed_map_adjustment": {"map_adjust_anneal": True},
+        "beacon_jitter": {"beacon_jitter_m": 0.05},
+        "ess_resampling": {"resample_ess_fraction": 0.5},
+        "ring_startup": {"hint_sigma_m": 0.0},  # the ring and the gauge act without a hint
+        "gauge_alignment": {"hint_sigma_m": 0.0},
+    }
+    sim = simulate(PAPER_LAYOUT, SimConfig(n_steps=40, outlier_prob=0.1, seed=2))
+    assert set(on_values) <= set(EXTENSIONS)
+
+    def final(params: BeaconFilterParams) -> np.ndarray:
+        f = BeaconSlamFilter(sim.ids, params, layout_xy=PAPER_LAYOUT)
+        for t in range(len(sim.ranges_m)):
+            est = f.step(sim.ranges_m[t])
+        return np.concatenate([est.cam_xy, est.beacons_xy.ravel()])
+
+    for name, ext in EXTENSIONS.items():
+        on = dataclasses.replace(BeaconFilterParams(n_particles=60, seed=4),
+                                 **on_values.get(name, {}))  # type: ignore[arg-type]
+        off = dataclasses.replace(on, **ext.values)  # type: ignore[arg-type]
+        assert off != on, name
+        assert not np.allclose(final(on), final(off)), f"switching off {name} changed nothing"

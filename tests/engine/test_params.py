@@ -158,8 +158,8 @@ def test_params_instances_are_frozen_and_slotted() -> None:
 #: dataclasses with help metadata that are not Params yet: moved by another engineer now
 #: (the coordinator converts them after), or a calibration record with its own error type
 PENDING = {
-    "engine.trackers.dense.DenseParams", "engine.keyframe_sweep.SweepParams",
-    "engine.fusion.FusionParams", "engine.sba.SBAParams",
+    "engine.dense.params.DenseParams", "engine.keyframes.sweep.SweepParams",
+    "engine.keyframes.fusion.FusionParams", "engine.keyframes.sba.SBAParams",
     "engine.camera.Intrinsics",
 }
 
