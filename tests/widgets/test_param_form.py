@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import enum
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import pytest
 
 from engine.errors import ParamsError
+from engine.params import Params as EngineParams
+from engine.params import Preset, param
 from widgets.param_form import ParamForm, field_label
 
 
@@ -143,3 +147,44 @@ def test_real_tracker_params_build_a_form(qtbot) -> None:  # type: ignore[no-unt
         form = ParamForm(spec.params_cls())
         qtbot.addWidget(form)
         assert form.params == spec.params_cls()
+
+
+@dataclass(frozen=True, slots=True)
+class WithPresets(EngineParams):
+    """Parameters with presets."""
+
+    n: int = param(10, help="count", lo=1, hi=100)
+    rate: float = param(30.0, help="update rate", unit="Hz")
+    exact: bool = param(False, help="exact rule")
+
+    PRESETS: ClassVar[Mapping[str, Preset]] = {
+        "paper": Preset("as published", n=50, exact=True),
+        "bad": Preset("out of range", n=1000),
+    }
+
+
+def test_preset_box_applies_presets_and_follows_edits(qtbot) -> None:  # type: ignore[no-untyped-def]
+    f = ParamForm(WithPresets())
+    qtbot.addWidget(f)
+    box = f.preset_box
+    assert box is not None
+    assert [box.itemText(i) for i in range(box.count())] == ["custom", "paper", "bad"]
+    assert box.currentText() == "custom"
+    with qtbot.waitSignal(f.params_changed) as blocker:
+        box.setCurrentIndex(box.findData("paper"))
+    assert blocker.args[0] == WithPresets(n=50, exact=True)
+    assert f.editor("n").value() == 50
+    with qtbot.waitSignal(f.params_changed):
+        f.editor("n").setValue(49)
+    assert box.currentText() == "custom"  # the values no longer match the preset
+    with qtbot.waitSignal(f.edit_rejected):
+        box.setCurrentIndex(box.findData("bad"))
+    assert f.params == WithPresets(n=49, exact=True)  # kept the last valid params
+    assert "preset" in f.errors
+    assert box.currentText() == "custom"
+    assert ParamForm(Params()).preset_box is None  # a plain dataclass: no preset box
+
+
+def test_unit_metadata_labels_a_field_without_a_unit_suffix() -> None:
+    assert field_label("rate", {"unit": "Hz"}) == "rate (Hz)"
+    assert field_label("rate_hz", {"unit": "1/s"}) == "rate (Hz)"  # the name's suffix wins
