@@ -52,7 +52,8 @@ class PtzParams(Params):
                                help="contour (paper: mean of contour points) or moments (colour "
                                "mass in snake)")
     omega_max_rad_s: float = param(2.0 * math.pi / 50.0 * 3, lo=0.0, hi=10.0, step=0.01,
-                                   label="omega max (rad/s)", help="largest model turn rate; models at 0..max evenly "
+                                   label="omega max (rad/s)",
+                                   help="largest model turn rate; models at 0..max evenly "
                                    "(paper: 2pi/50*[0..3])")
     n_models: int = param(4, lo=1, hi=16, help="number of MMAE models")
     q_jerk_psd: float = param(1e-4, lo=1e-10, hi=100.0, step=1e-5,
