@@ -6,6 +6,8 @@ Conventions (carried in the names):
 - Twists are ``xi = (v, w)``: translational part first, rotational part second (3+3).
 - Quaternions are ``quat_xyzw`` (scalar last), as in TUM trajectory files.
 - Camera frames are OpenCV's: x right, y down, z forward (optical axis).
+- ``*_batch`` functions (and :func:`invert`) take stacks: a leading (N,) axis (or any
+  leading axes) over the single-element shapes.
 
 The SE(3) exponential and logarithm follow the closed forms (e.g. Tykkälä 2014 eq. (5)
 uses this parameterisation) with Taylor expansions near zero angle so that they stay
@@ -56,6 +58,32 @@ def so3_exp(w: F64) -> F64:
     a, b, _ = _so3_coeffs(theta)
     W = hat(w)
     return np.eye(3) + a * W + b * (W @ W)
+
+
+def hat_batch(w: F64) -> F64:
+    """(N, 3) vectors -> (N, 3, 3) skew-symmetric matrices (see :func:`hat`)."""
+    w = np.asarray(w, dtype=np.float64)
+    W = np.zeros((*w.shape[:-1], 3, 3))
+    W[..., 0, 1], W[..., 0, 2] = -w[..., 2], w[..., 1]
+    W[..., 1, 0], W[..., 1, 2] = w[..., 2], -w[..., 0]
+    W[..., 2, 0], W[..., 2, 1] = -w[..., 1], w[..., 0]
+    return W
+
+
+def so3_exp_batch(w: F64) -> F64:
+    """Rodrigues' formula for (N, 3) rotation vectors -> (N, 3, 3), as :func:`so3_exp` row by
+    row (same series below the small angle, same cancellation-free B)."""
+    w = np.asarray(w, dtype=np.float64)
+    theta = np.linalg.norm(w, axis=-1)
+    small = theta < _SMALL_ANGLE
+    t2 = theta * theta
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(safe) / safe)
+    b = np.where(
+        small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, 2.0 * np.sin(0.5 * safe) ** 2 / (safe * safe)
+    )
+    W = hat_batch(w)
+    return np.eye(3) + a[..., None, None] * W + b[..., None, None] * (W @ W)
 
 
 def so3_log(R: F64) -> F64:
@@ -125,12 +153,20 @@ def make_T(R: F64, t: F64) -> F64:
 
 
 def invert(T: F64) -> F64:
-    """Inverse of a rigid transform without a general matrix inverse."""
-    R = T[:3, :3]
-    Ti = np.eye(4)
-    Ti[:3, :3] = R.T
-    Ti[:3, 3] = -R.T @ T[:3, 3]
-    return Ti
+    """Inverse of a rigid transform (4, 4), or of each in a stack (..., 4, 4), without a
+    general matrix inverse: [R | t]^-1 = [R^T | -R^T t]."""
+    if T.ndim == 2:
+        R = T[:3, :3]
+        Ti = np.eye(4)
+        Ti[:3, :3] = R.T
+        Ti[:3, 3] = -R.T @ T[:3, 3]
+        return Ti
+    Ri = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros(T.shape, dtype=np.float64)
+    out[..., :3, :3] = Ri
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Ri, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
 
 
 def compose(*Ts: F64) -> F64:
@@ -204,6 +240,13 @@ def tum_from_T(T: F64) -> F64:
 def rotation_angle_rad(R: F64) -> float:
     """Angle of a rotation matrix in radians, in [0, pi]."""
     return float(np.arccos(np.clip((np.trace(R) - 1.0) * 0.5, -1.0, 1.0)))
+
+
+def rotation_angle_rad_batch(R: F64) -> F64:
+    """Angle of each rotation of an (N, 3, 3) stack: arccos((trace - 1) / 2), clipped (as
+    TUM's evaluation script)."""
+    tr = np.trace(R, axis1=-2, axis2=-1)
+    return np.arccos(np.clip((tr - 1.0) * 0.5, -1.0, 1.0))
 
 
 def pan_tilt_roll_deg(R_world_cam: F64) -> tuple[float, float, float]:

@@ -61,6 +61,14 @@ def atomic_write_png(path: Path, image: np.ndarray) -> None:
     atomic_write_bytes(path, enc.tobytes())
 
 
+def write_text_file(path: Path, text: str, error: type[Exception]) -> None:
+    """Write a text result atomically; a failure raises ``error`` with one line naming the file."""
+    try:
+        atomic_write_text(Path(path), text)
+    except OSError as exc:
+        raise error(f"{path}: cannot write ({exc.strerror or exc})") from None
+
+
 def read_json_file(
     path: Path,
     error: type[Exception],

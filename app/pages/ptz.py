@@ -39,6 +39,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.pages import PageSpec
+from engine.shared_data import shared_data_dir
 
 REDRAW_HZ = 30
 HISTORY = 3000
@@ -46,10 +47,6 @@ MODEL_COLOURS = [(230, 230, 230), (255, 90, 90), (90, 200, 255), (255, 200, 60),
                  (160, 255, 120), (220, 120, 255)]
 AXIS_COLOURS = [(255, 90, 90), (120, 230, 120), (90, 160, 255)]
 OUTLIER_BG = QColor(170, 40, 40)
-
-
-def _shared_data() -> Path:
-    return Path(__file__).resolve().parents[3] / "shared" / "data"
 
 
 def _axes(plot: Any, bottom: str, left: str) -> None:
@@ -652,7 +649,7 @@ class PtzPage(QWidget):
         frame = next(iter(PtzSimSource(CircleScenario(duration_s=0.1)).frames()))
         self.points.set_image(np.ascontiguousarray(frame.color_bgr))
         self.live.video.set_image_bgr(np.ascontiguousarray(frame.color_bgr))
-        radial = _shared_data() / "opencv_samples" / "lines_distortion" / "calib_radial.jpg"
+        radial = shared_data_dir() / "opencv_samples" / "lines_distortion" / "calib_radial.jpg"
         img = cv2.imread(str(radial)) if radial.exists() else None
         self.lines.set_image(img if img is not None else np.ascontiguousarray(frame.color_bgr))
 

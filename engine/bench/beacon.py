@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -48,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from engine.bench import BenchSpec
+from engine.progress import log
 
 HELP = "range-beacon SLAM (Yang 2007): paper experiment, Map Adjustment, particles, speed"
 
@@ -61,10 +61,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=30, help="seeds per setting (default 30)")
     parser.add_argument("--plots", type=Path, default=None, help="folder for PNG plots")
     parser.add_argument("--quick", action="store_true", help="fewer seeds and particle counts")
-
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def align_rot_reflect(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
@@ -264,7 +260,7 @@ def _sweep(base: Any, grid: tuple[int, ...], seeds: range, sim_cfg: Any,
                 std_err[m][key][n] = float(np.std(v, ddof=1) / math.sqrt(len(v)))
         c = curves["path"]
         cb = curves["beacon"]
-        _log(f"  {name} {n:4d} particles: path with MA {c['with_ma'][n]:.2f} m, without "
+        log(f"  {name} {n:4d} particles: path with MA {c['with_ma'][n]:.2f} m, without "
              f"{c['without_ma'][n]:.2f} m; beacons with MA {cb['with_ma'][n]:.2f} m, without "
              f"{cb['without_ma'][n]:.2f} m")
 
@@ -279,7 +275,7 @@ def _sweep(base: Any, grid: tuple[int, ...], seeds: range, sim_cfg: Any,
                 "without_ma": needed(curves[m]["without_ma"])}
         ratio = (need["without_ma"] / need["with_ma"]
                  if need["with_ma"] and need["without_ma"] else None)
-        _log(f"  {name} {m}: accuracy target {target:.2f} m reached with MA at "
+        log(f"  {name} {m}: accuracy target {target:.2f} m reached with MA at "
              f"{need['with_ma']}, without at {need['without_ma']} particles")
         out[m] = {"need": need, "ratio": ratio, "target": target, "curves": curves[m],
                   "std_err": std_err[m]}
@@ -303,7 +299,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     runs: dict[str, dict[str, list[dict[str, Any]]]] = {}
     settings: dict[str, dict[str, Any]] = {}
     for name, base, aligned in (("paper", paper, True), ("hint", hint, False)):
-        _log(f"beacon bench: setting {'A (paper init)' if name == 'paper' else 'B (hint 3 m)'}"
+        log(f"beacon bench: setting {'A (paper init)' if name == 'paper' else 'B (hint 3 m)'}"
              f", 120 steps, 200 particles, {n_seeds} seeds")
         runs[name] = {
             "with_ma": [run_once(base, s, sim_cfg, layout) for s in seeds],
@@ -312,10 +308,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         }
         settings[name] = {k: _summary(v, aligned) for k, v in runs[name].items()}
         for k, v in settings[name].items():
-            _log(f"  {k:11s} path RMSE {v['path_rmse']:.2f} m ({v['metric']}; raw "
+            log(f"  {k:11s} path RMSE {v['path_rmse']:.2f} m ({v['metric']}; raw "
                  f"{v['path_rmse_raw']:.2f} m), final beacon error {v['beacon_err_final']:.2f} m")
 
-    _log("beacon bench: start-up fix, setting A with MA: old point start-up on the same data")
+    log("beacon bench: start-up fix, setting A with MA: old point start-up on the same data")
     old = replace(paper, ring_hypotheses=0, gauge_aligned_estimate=False)
     old_runs = [run_once(old, s, sim_cfg, layout) for s in seeds]
     startup_json: dict[str, Any] = {}
@@ -330,18 +326,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             "paired_mean_diff_m": float(np.mean(d)),
             "paired_std_err_m": float(np.std(d, ddof=1) / math.sqrt(len(d))),
         }
-        _log(f"  {key}: ring start-up {startup_json[key]['ring_mean']:.2f} m, point start-up "
+        log(f"  {key}: ring start-up {startup_json[key]['ring_mean']:.2f} m, point start-up "
              f"{startup_json[key]['point_mean']:.2f} m (paired diff "
              f"{startup_json[key]['paired_mean_diff_m']:+.2f} ± "
              f"{startup_json[key]['paired_std_err_m']:.2f} m)")
 
-    _log(f"beacon bench: particle sweeps {grid}, {len(sweep_seeds)} seeds")
+    log(f"beacon bench: particle sweeps {grid}, {len(sweep_seeds)} seeds")
     sweeps = {
         "paper": _sweep(paper, grid, sweep_seeds, sim_cfg, layout, True, "A"),
         "hint": _sweep(hint, grid, sweep_seeds, sim_cfg, layout, False, "B"),
     }
 
-    _log("beacon bench: 10 % outlier ranges (setting B)")
+    log("beacon bench: 10 % outlier ranges (setting B)")
     out_cfg = replace(sim_cfg, outlier_prob=0.10)
     outl = {
         "clean_robust": _summary([run_once(hint, s, sim_cfg, layout) for s in seeds], False),
@@ -352,18 +348,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                     False),
     }
     for k, v in outl.items():
-        _log(f"  {k:25s} path RMSE {v['path_rmse']:.2f} m, beacons {v['beacon_err_final']:.2f} m")
+        log(f"  {k:25s} path RMSE {v['path_rmse']:.2f} m, beacons {v['beacon_err_final']:.2f} m")
 
-    _log("beacon bench: speed at 200 particles (medians of 5 repeats, shared CPU)")
+    log("beacon bench: speed at 200 particles (medians of 5 repeats, shared CPU)")
     tracker_rate, filter_rate = (_steps_per_s(hint, 3, 200) if args.quick
                                  else _steps_per_s(hint))
-    _log(f"  tracker {tracker_rate:.0f} steps/s, filter alone {filter_rate:.0f} steps/s")
+    log(f"  tracker {tracker_rate:.0f} steps/s, filter alone {filter_rate:.0f} steps/s")
 
     plots: list[str] = []
     if args.plots is not None:
         example = {k: runs["hint"][k][0] for k in runs["hint"]}
         plots = _plots(Path(args.plots), settings, example, sweeps)
-        _log(f"  plots: {', '.join(plots)}")
+        log(f"  plots: {', '.join(plots)}")
 
     def sweep_json(sw: dict[str, Any]) -> dict[str, Any]:
         def table(c: dict[str, dict[int, float]]) -> dict[str, dict[str, float]]:

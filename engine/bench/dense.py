@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -40,6 +39,8 @@ from typing import Any
 import numpy as np
 
 from engine.bench import BenchSpec
+from engine.progress import log
+from engine.shared_data import shared_data_dir
 
 HELP = "dense RGB-D trackers: speed, TUM accuracy, studio rail drift, keyframe count, memory"
 
@@ -60,17 +61,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--skip", default="",
                         help="comma list of parts to skip: real, rail, keyframes, memory")
     parser.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots here")
-
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-def _shared_data() -> Path:
-    env = os.environ.get("STUDIOTRACK_SHARED_DATA")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
 def _stats(ms: list[float]) -> dict[str, float]:
@@ -108,9 +98,9 @@ def _real(points: int) -> dict[str, Any]:
     from engine.sources.tum import TumSource
     from engine.trackers import create_tracker
 
-    folder = _shared_data() / "tum_fr1_xyz_37"
+    folder = shared_data_dir() / "tum_fr1_xyz_37"
     if not folder.is_dir():
-        _log(f"real: {folder} is absent, skipped")
+        log(f"real: {folder} is absent, skipped")
         return {"skipped": f"{folder} absent"}
     src = TumSource(folder)
     frames = list(src.frames())
@@ -142,7 +132,7 @@ def _real(points: int) -> dict[str, Any]:
             "lost_frames": lost,
             **_stats(ms[1:]),
         }
-        _log(f"real {name:18s} ATE {a.rmse_m * 1e3:6.2f} mm  RPE {p.trans_rmse_m_per_s * 1e3:6.2f}"
+        log(f"real {name:18s} ATE {a.rmse_m * 1e3:6.2f} mm  RPE {p.trans_rmse_m_per_s * 1e3:6.2f}"
              f" mm/s  median {np.median(ms[1:]):6.1f} ms  lost {lost}")
     return out
 
@@ -168,7 +158,7 @@ def _sweep_store(points: int, kf_dist: float) -> Any:
         SweepParams(kf_add_dist_m=kf_dist, max_kept_frames=0),
         dense_params=DenseParams(n_points=points),
     )
-    _log(f"sweep: {len(res.store)} keyframes from {res.frames_processed} empty-studio frames "
+    log(f"sweep: {len(res.store)} keyframes from {res.frames_processed} empty-studio frames "
          f"({res.lost_frames} lost, {res.seconds:.1f} s)")
     return res
 
@@ -182,7 +172,7 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
     spec = _rail_spec(args.cycles, args.cycle_s, args.presenter_cycles)
     src = open_source(spec)
     n = len(src)
-    _log(f"rail: {spec} ({n} frames)")
+    log(f"rail: {spec} ({n} frames)")
     dense = DenseKeyframeTracker(DenseParams(n_points=args.points), store=store)
     incr = create_tracker("dense-incremental", n_points=args.points)
     ocv = create_tracker("opencv-odometry")
@@ -214,7 +204,7 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
             relock.append(int(rd.extras["frames_to_relock"]))
         presenter.append(bool(f.extras.get("presenter_pixels") or 0))
         if f.index % 180 == 0:
-            _log(f"  frame {f.index}/{n}: dense {err_d[-1] * 1e3:.1f} mm, "
+            log(f"  frame {f.index}/{n}: dense {err_d[-1] * 1e3:.1f} mm, "
                  f"incremental {err_i[-1] * 1e3:.1f} mm")
     ed, ei = np.asarray(err_d), np.asarray(err_i)
     per_cycle = max(1, n // max(1, args.cycles))
@@ -250,11 +240,11 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
             so["cpu_ms_median"] / sd["cpu_ms_median"] if sd["cpu_ms_median"] > 0 else None
         ),
     }
-    _log(f"rail: dense max {rail['keyframe_max_err_m'] * 1e3:.2f} mm, incremental final "
+    log(f"rail: dense max {rail['keyframe_max_err_m'] * 1e3:.2f} mm, incremental final "
          f"{rail['incremental_final_err_m'] * 1e3:.2f} mm")
-    _log(f"speed (CPU ms): dense {sd['cpu_ms_median']:.1f}, incremental "
+    log(f"speed (CPU ms): dense {sd['cpu_ms_median']:.1f}, incremental "
          f"{si['cpu_ms_median']:.1f}, opencv {so['cpu_ms_median']:.1f}")
-    _log(f"speed: dense {sd['ms_median']:.1f} ms (p95 {sd['ms_p95']:.1f}), incremental "
+    log(f"speed: dense {sd['ms_median']:.1f} ms (p95 {sd['ms_p95']:.1f}), incremental "
          f"{si['ms_median']:.1f}, opencv {so['ms_median']:.1f} "
          f"-> x{speed['speedup_vs_opencv']:.1f}")
     rail["_series"] = {"dense": ed, "incremental": ei, "presenter": np.asarray(presenter)}
@@ -297,7 +287,7 @@ def _keyframe_counts(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     from engine.sources import open_source
 
     gt_store = _ground_truth_store(store)
-    _log(f"keyframes: {len(gt_store)} of {len(store)} sweep keyframes matched to their truth")
+    log(f"keyframes: {len(gt_store)} of {len(store)} sweep keyframes matched to their truth")
     subsets: dict[tuple[str, int], Any] = {}
     for family, st in (("sweep", store), ("true_poses", gt_store)):
         ids = [k.id for k in st.keyframes]
@@ -322,7 +312,7 @@ def _keyframe_counts(args: argparse.Namespace, store: Any) -> dict[str, Any]:
         e = np.asarray(errs[key])
         rows.append({"poses": key[0], "keyframes": key[1], "max_err_m": float(np.nanmax(e)),
                      "mean_err_m": float(np.nanmean(e)), "lost_frames": lost[key]})
-        _log(f"keyframes {key[0]:10s} {key[1]:3d}: max {np.nanmax(e) * 1e3:7.2f} mm, mean "
+        log(f"keyframes {key[0]:10s} {key[1]:3d}: max {np.nanmax(e) * 1e3:7.2f} mm, mean "
              f"{np.nanmean(e) * 1e3:6.2f} mm, lost {lost[key]}")
     return {"rows": rows}
 
@@ -370,10 +360,10 @@ def _memory(store: Any, frames: list[Any]) -> dict[str, Any]:
             capture_output=True, text=True, check=False, timeout=600,
         )
     if out.returncode != 0:
-        _log(f"memory: child failed: {out.stderr.strip().splitlines()[-1:]}")
+        log(f"memory: child failed: {out.stderr.strip().splitlines()[-1:]}")
         return {"peak_rss_mb": None, "error": out.stderr.strip()[-300:]}
     res = json.loads(out.stdout.strip().splitlines()[-1])
-    _log(f"memory: peak RSS {res['peak_rss_mb']:.0f} MB with {res['keyframes']} keyframes "
+    log(f"memory: peak RSS {res['peak_rss_mb']:.0f} MB with {res['keyframes']} keyframes "
          f"({res['after_imports_mb']:.0f} MB after imports)")
     return res
 

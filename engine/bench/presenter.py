@@ -21,17 +21,16 @@ Timings are medians on a shared machine: noisy, compare within one run.
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from engine.bench import BenchSpec
 from engine.frames import Frame
+from engine.progress import log
+from engine.shared_data import shared_data_dir
 
 HELP = "presenter particle filter vs OpenCV KCF/MIL/CSRT (OTB metrics, loss, jitter)"
 
@@ -51,17 +50,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--particles", type=int, default=100, help="presenter particles")
     parser.add_argument("--skip-loss", action="store_true", help="skip the loss scenario")
     parser.add_argument("--skip-jitter", action="store_true", help="skip the jitter scenario")
-
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-def shared_data_dir() -> Path:
-    env = os.environ.get("STUDIOTRACK_SHARED_DATA")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[2].parent / "shared" / "data"
 
 
 # ------------------------------------------------------------------------------ sequences
@@ -271,17 +259,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         try:
             frames = loaders[seq]()
         except Exception as exc:  # missing data is reported, the rest still runs
-            _log(f"{seq}: skipped ({exc})")
+            log(f"{seq}: skipped ({exc})")
             results[seq] = {"error": str(exc)}
             continue
         h, w = frames[0].color_bgr.shape[:2]  # type: ignore[union-attr]
-        _log(f"{seq}: {len(frames)} frames {w}x{h}")
+        log(f"{seq}: {len(frames)} frames {w}x{h}")
         results[seq] = {}
         for name in trackers:
             res, times = run_tracker(_make(name, args.particles), frames)
             sc = score(frames, res, times)
             results[seq][name] = sc
-            _log(f"  {name:9s} AUC {sc['success_auc']:.3f}  P@20 {sc['precision_20px']:.3f}  "
+            log(f"  {name:9s} AUC {sc['success_auc']:.3f}  P@20 {sc['precision_20px']:.3f}  "
                  f"{sc['fps']} fps")
     out: dict[str, Any] = {}
     colour = [s for s in COLOUR_SEQUENCES if s in results and "presenter" in results[s]]
@@ -312,14 +300,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                         "fps": round(1.0 / float(np.median(times[1:])), 1),
                         "fps_mean": round(len(times[1:]) / float(np.sum(times[1:])), 1),
                         "median_stage_ms": stages}
-        _log(f"speed {w}x{h} 100 particles {len(tracker.model.patches)} patches: "
+        log(f"speed {w}x{h} 100 particles {len(tracker.model.patches)} patches: "
              f"{out['speed']['fps']} fps (median), stages {stages}")
         if not args.skip_loss:
             out["loss"] = loss_scenario(max(args.frames or 330, 330))
-            _log(f"loss: {out['loss']}")
+            log(f"loss: {out['loss']}")
         if not args.skip_jitter:
             out["jitter"] = jitter_scenario(max(args.frames or 200, 120))
-            _log(f"jitter: {out['jitter']}")
+            log(f"jitter: {out['jitter']}")
     return {**results, **out}
 
 

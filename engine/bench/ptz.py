@@ -15,8 +15,6 @@ from __future__ import annotations
 import argparse
 import glob
 import math
-import os
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -24,19 +22,11 @@ from typing import Any
 import numpy as np
 
 from engine.bench import BenchSpec
+from engine.geometry import rotation_angle_rad
+from engine.progress import log
+from engine.shared_data import shared_data_dir
 
 HELP = "pan-tilt target tracker (Gaspar 2009): circle scenario, DLT, distortion, chessboard"
-
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-def _shared_data() -> Path:
-    env = os.environ.get("STUDIOTRACK_SHARED_DATA")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[3] / "shared" / "data"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -73,7 +63,7 @@ def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
         omg.append(r.extras["omega_rad_s"])
         resets = int(r.extras["resets"])
         if f.index % 300 == 0:
-            _log(f"  circle t={f.timestamp_s:5.1f}s d={dist[-1]:.2f}m pos err={ep[-1]*100:.1f}cm "
+            log(f"  circle t={f.timestamp_s:5.1f}s d={dist[-1]:.2f}m pos err={ep[-1]*100:.1f}cm "
                  f"p={np.round(r.extras['model_probs'], 3).tolist()}")
     t = np.asarray(t_s)
     ep_a, ev_a, ea_a, d_a = map(np.asarray, (ep, ev, ea, dist))
@@ -126,8 +116,7 @@ def run_dlt(trials: int, noise_px: float = 0.5) -> dict[str, Any]:
         rm.append(res.rmse_px)
         au.append(abs(d.alpha_u - 800.0) / 800.0)
         u0.append(float(np.hypot(d.u0 - 330.0, d.v0 - 245.0)))
-        rot.append(math.degrees(math.acos(np.clip((np.trace(d.R_cam_world @ R.T) - 1) / 2,
-                                                  -1, 1))))
+        rot.append(math.degrees(rotation_angle_rad(d.R_cam_world @ R.T)))
         cen.append(float(np.linalg.norm(d.camera_centre_world - c)))
     return {
         "reproj_rmse_px": float(np.median(rm)),
@@ -239,24 +228,24 @@ def run_pan_tilt_from_points(trials: int = 20) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    data = args.data or _shared_data()
+    data = args.data or shared_data_dir()
     out: dict[str, Any] = {}
     if not args.skip_circle:
-        _log(f"circle scenario: {args.duration:.0f} s, period {args.period:.0f} s")
+        log(f"circle scenario: {args.duration:.0f} s, period {args.period:.0f} s")
         out["circle"] = run_circle(args.duration, args.period)
         c = out["circle"]
-        _log(f"  steady pos err {c['pos_err_m_steady']*100:.1f} cm (median), at >=6 m "
+        log(f"  steady pos err {c['pos_err_m_steady']*100:.1f} cm (median), at >=6 m "
              f"{(c['pos_err_m_at_7m'] or float('nan'))*100:.1f} cm, true model p="
              f"{c['true_model_prob_final']:.3f}, {c['updates_per_s']:.0f} updates/s")
-    _log("DLT on synthetic correspondences (0.5 px noise)")
+    log("DLT on synthetic correspondences (0.5 px noise)")
     out["dlt"] = run_dlt(args.trials)
-    _log(f"  reprojection RMSE {out['dlt']['reproj_rmse_px']:.3f} px")
-    _log("line-based distortion")
+    log(f"  reprojection RMSE {out['dlt']['reproj_rmse_px']:.3f} px")
+    log("line-based distortion")
     out["distortion"] = run_distortion(data)
-    _log(f"  synthetic k3 rel err {out['distortion']['k_rel_err']:.4f}")
-    _log("chessboard calibration of opencv_samples left images")
+    log(f"  synthetic k3 rel err {out['distortion']['k_rel_err']:.4f}")
+    log("chessboard calibration of opencv_samples left images")
     out["chessboard"] = run_chessboard(data)
-    _log(f"  fx {out['chessboard']['fx']}, k1 {out['chessboard']['k1']}, "
+    log(f"  fx {out['chessboard']['fx']}, k1 {out['chessboard']['k1']}, "
          f"rms {out['chessboard']['rms_px']}")
     out["pan_tilt_from_points"] = run_pan_tilt_from_points()
     flat: dict[str, Any] = {}

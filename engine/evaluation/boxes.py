@@ -155,10 +155,6 @@ def boxes_text(boxes: object) -> str:
 
 def write_boxes(path: str | Path, boxes: object) -> None:
     """Write an OTB box file atomically."""
-    from engine.persist import atomic_write_text
+    from engine.persist import write_text_file
 
-    path = Path(path)
-    try:
-        atomic_write_text(path, boxes_text(boxes))
-    except OSError as exc:
-        raise EvaluationError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    write_text_file(Path(path), boxes_text(boxes), EvaluationError)

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from engine.errors import EvaluationError
 from engine.evaluation.trajectory import TUM_MAX_DIFF_S, Trajectory, associate
+from engine.geometry import invert, rotation_angle_rad_batch
 
 F64 = NDArray[np.float64]
 
@@ -196,22 +197,6 @@ class RpeResult:
     stamps_est_s: F64  # start stamp of each pair
 
 
-def _rotation_angle_rad(R: F64) -> F64:
-    """Angle of each (N, 3, 3) rotation: arccos((trace - 1) / 2), clipped as TUM's script."""
-    tr = np.trace(R, axis1=-2, axis2=-1)
-    return np.arccos(np.clip((tr - 1.0) * 0.5, -1.0, 1.0))
-
-
-def _inv_se3(T: F64) -> F64:
-    """Inverse of (N, 4, 4) rigid transforms."""
-    Ri = np.transpose(T[:, :3, :3], (0, 2, 1))
-    out = np.zeros_like(T)
-    out[:, :3, :3] = Ri
-    out[:, :3, 3] = -np.einsum("nij,nj->ni", Ri, T[:, :3, 3])
-    out[:, 3, 3] = 1.0
-    return out
-
-
 def rpe(
     gt: Trajectory,
     est: Trajectory,
@@ -236,12 +221,12 @@ def rpe(
         )
     Q_i, Q_j = gt.T_world_cam[pairs.gt_i], gt.T_world_cam[pairs.gt_j]
     P_i, P_j = est.T_world_cam[pairs.est_i], est.T_world_cam[pairs.est_j]
-    Q_rel = _inv_se3(Q_i) @ Q_j
-    P_rel = _inv_se3(P_i) @ P_j
+    Q_rel = invert(Q_i) @ Q_j
+    P_rel = invert(P_i) @ P_j
     # Sturm 2012 eq. (1): E_i = (Q_i^-1 Q_{i+delta})^-1 (P_i^-1 P_{i+delta}).
-    E = P_rel @ _inv_se3(Q_rel) if script_error_order else _inv_se3(Q_rel) @ P_rel
+    E = P_rel @ invert(Q_rel) if script_error_order else invert(Q_rel) @ P_rel
     trans = np.linalg.norm(E[:, :3, 3], axis=1)
-    rot_deg = np.degrees(_rotation_angle_rad(E[:, :3, :3]))
+    rot_deg = np.degrees(rotation_angle_rad_batch(E[:, :3, :3]))
     return RpeResult(
         trans_rmse_m_per_s=float(np.sqrt(np.mean(trans * trans))),
         rot_rmse_deg_per_s=float(np.sqrt(np.mean(rot_deg * rot_deg))),

@@ -175,13 +175,9 @@ def tum_text(traj: Trajectory) -> str:
 
 def write_tum(path: str | Path, traj: Trajectory) -> None:
     """Write a TUM trajectory file atomically (readable by TUM's scripts and evo)."""
-    from engine.persist import atomic_write_text
+    from engine.persist import write_text_file
 
-    path = Path(path)
-    try:
-        atomic_write_text(path, tum_text(traj))
-    except OSError as exc:
-        raise EvaluationError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    write_text_file(Path(path), tum_text(traj), EvaluationError)
 
 
 def associate(

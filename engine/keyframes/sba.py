@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics, backproject, project
 from engine.errors import StudioTrackError
-from engine.geometry import invert
+from engine.geometry import invert, rotation_angle_rad
 from engine.keyframes.depth_sample import depth_at, depth_plane
 from engine.keyframes.sba_residuals import (
     SBAProblem,
@@ -534,7 +534,7 @@ def bundle_adjust(
         after[k] = invert(T_cw)
         before = np.asarray(T_world_cam[k], dtype=np.float64)
         dR = before[:3, :3].T @ after[k][:3, :3]
-        ang = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(dR) - 1.0) / 2.0))))
+        ang = math.degrees(rotation_angle_rad(dR))
         change[k] = (float(np.linalg.norm(after[k][:3, 3] - before[:3, 3])), ang)
     pt_ids = pb.point_ids
     return SBAResult(

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import Intrinsics, project
+from engine.geometry import so3_exp_batch
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_matrix
@@ -70,21 +71,6 @@ class SBAProblem:
         return 6 * self.n_free + 3 * len(self.point_ids)
 
 
-def rotvec_to_R(r: F64) -> F64:
-    """Rodrigues for an (N, 3) array of rotation vectors -> (N, 3, 3)."""
-    theta = np.linalg.norm(r, axis=1)
-    small = theta < 1e-8
-    safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0, np.sin(theta) / safe)
-    b = np.where(small, 0.5, (1.0 - np.cos(theta)) / (safe * safe))
-    n = r.shape[0]
-    W = np.zeros((n, 3, 3))
-    W[:, 0, 1], W[:, 0, 2] = -r[:, 2], r[:, 1]
-    W[:, 1, 0], W[:, 1, 2] = r[:, 2], -r[:, 0]
-    W[:, 2, 0], W[:, 2, 1] = -r[:, 1], r[:, 0]
-    return np.eye(3)[None] + a[:, None, None] * W + b[:, None, None] * (W @ W)
-
-
 def unpack(pb: SBAProblem, x: F64) -> tuple[F64, F64, F64]:
     """(R_cw (K, 3, 3), t_cw (K, 3), X_world (P, 3)) of every adjusted keyframe and point."""
     n_f = pb.n_free
@@ -93,7 +79,7 @@ def unpack(pb: SBAProblem, x: F64) -> tuple[F64, F64, F64]:
     dR = np.repeat(np.eye(3)[None], len(pb.adjusted), axis=0)
     dt = np.zeros((len(pb.adjusted), 3))
     if n_f:
-        dR[pb.free_rows] = rotvec_to_R(poses[:, 3:])
+        dR[pb.free_rows] = so3_exp_batch(poses[:, 3:])
         dt[pb.free_rows] = poses[:, :3]
     R = dR @ pb.R0  # T_cw = [dR | dt] T_cw0
     t = np.einsum("nij,nj->ni", dR, pb.t0_cw) + dt

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
 from engine.errors import CalibrationError, TrackerError
-from engine.geometry import invert, rotation_angle_rad
+from engine.geometry import invert, rotation_angle_rad, rotation_angle_rad_batch
 from engine.persist import read_json_file
 
 F64 = NDArray[np.float64]
@@ -174,7 +174,7 @@ class KeyframeStore:
         # dT_k = T_kf_cam = T_kf_world T_world_cam, eq. (19)
         R_kc = np.einsum("kji,jl->kil", Rk, R)
         t_kc = np.einsum("kji,kj->ki", Rk, t - tk)
-        theta = np.arccos(np.clip((np.trace(R_kc, axis1=1, axis2=2) - 1.0) * 0.5, -1.0, 1.0))
+        theta = rotation_angle_rad_batch(R_kc)
         dist = np.linalg.norm(t - tk, axis=1)
         P = self._test_pts
         q = np.einsum("kij,nj->kni", R_kc, P) + t_kc[:, None, :]

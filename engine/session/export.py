@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from engine.geometry import pan_tilt_roll_deg, tum_from_T
-from engine.persist import atomic_write_text
+from engine.persist import write_text_file
 from engine.session import SessionError
 from engine.session.reader import pose_of
 
@@ -77,8 +77,5 @@ def export_trajectory(records: Sequence[dict[str, Any]], path: str | Path,
     text = {"tum": tum_text, "csv": csv_text, "json": json_text}.get(fmt)
     if text is None:
         raise SessionError(f"unknown trajectory format {fmt!r} (tum, csv, json)")
-    try:
-        atomic_write_text(path, text(records))
-    except OSError as exc:
-        raise SessionError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    write_text_file(path, text(records), SessionError)
     return fmt

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from engine.errors import TrackerError
 from engine.frames import Frame
+from engine.geometry import rotation_angle_rad
 from engine.params import Params, param
 from engine.trackers.base import TrackerSpec, TrackResult, TrackState
 
@@ -120,7 +121,7 @@ class Open3DOdometryTracker:
         )
         t2 = time.perf_counter()
         T = np.asarray(T)
-        ang = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(T[:3, :3]) - 1) / 2))))
+        ang = math.degrees(rotation_angle_rad(T[:3, :3]))
         timings = {"preprocess": (t1 - t0) * 1e3, "minimize": (t2 - t1) * 1e3}
         assert self._T_world_prev is not None
         if not ok or np.linalg.norm(T[:3, 3]) > p.max_translation_m or ang > p.max_rotation_deg:

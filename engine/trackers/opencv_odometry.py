@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 from engine.camera import Intrinsics
 from engine.errors import ParamsError
 from engine.frames import Frame, readonly
+from engine.geometry import invert
 from engine.params import Params, param
 from engine.trackers.base import TrackerSpec, TrackResult, TrackState
 
@@ -232,7 +233,7 @@ class OpenCVOdometryTracker:
             return self._held(msg, timings)
 
         # Rt = T_cur_ref (p_cur = Rt p_ref), so T_world_cur = T_world_ref inv(Rt).
-        T_world_cur = self._T_world_ref @ _inv_rigid(Rt)
+        T_world_cur = self._T_world_ref @ invert(Rt)
         self._set_reference(cur, depth, color, T_world_cur)
         self._lost_run = 0
         timings["total"] = (time.perf_counter() - t_start) * 1000.0
@@ -250,14 +251,6 @@ class OpenCVOdometryTracker:
         self._ref_raw = (depth, color)
         self._T_world_ref = np.array(T_world, dtype=np.float64)
         self._T_world_cam = self._T_world_ref.copy()
-
-
-def _inv_rigid(T: F64) -> F64:
-    R = T[:3, :3]
-    out = np.eye(4)
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ T[:3, 3]
-    return out
 
 
 TRACKERS = (

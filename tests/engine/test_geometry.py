@@ -202,3 +202,38 @@ def test_pan_tilt_roll_conventions() -> None:
     )
     # roll keeps the optical axis
     np.testing.assert_allclose(g.R_from_pan_tilt_roll_deg(0, 0, 40)[:, 2], [0, 1, 0], atol=1e-15)
+
+
+# ---------------------------------------------------------------- batched helpers
+
+
+def _rotvecs(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Rotation vectors from tiny (series branch) to near pi."""
+    axes = rng.normal(size=(n, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([[0.0, 1e-9, 5e-5, 2e-4], rng.uniform(0, np.pi - 1e-3, n - 4)])
+    return axes * angles[:, None]
+
+
+def test_so3_exp_batch_matches_so3_exp_row_by_row() -> None:
+    w = _rotvecs(np.random.default_rng(0), 64)
+    batch = g.so3_exp_batch(w)
+    assert batch.shape == (64, 3, 3)
+    for wi, Ri in zip(w, batch, strict=True):
+        np.testing.assert_allclose(Ri, g.so3_exp(wi), rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(g.hat_batch(w[:3]), np.stack([g.hat(x) for x in w[:3]]))
+
+
+def test_invert_and_rotation_angle_take_stacks() -> None:
+    rng = np.random.default_rng(1)
+    w = _rotvecs(rng, 32)
+    T = np.stack([g.make_T(g.so3_exp(wi), rng.normal(size=3)) for wi in w])
+    Ti = g.invert(T)
+    assert Ti.shape == (32, 4, 4)
+    for a, b in zip(Ti, T, strict=True):
+        np.testing.assert_allclose(a, g.invert(b), atol=1e-14)
+    np.testing.assert_allclose(Ti @ T, np.broadcast_to(np.eye(4), T.shape), atol=1e-12)
+    angles = g.rotation_angle_rad_batch(T[:, :3, :3])
+    np.testing.assert_allclose(angles, [g.rotation_angle_rad(R) for R in T[:, :3, :3]],
+                               rtol=0, atol=0)
+    np.testing.assert_allclose(angles[4:], np.linalg.norm(w[4:], axis=1), atol=1e-6)
