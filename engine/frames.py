@@ -1,9 +1,25 @@
-"""The frame every source yields and the tracker consumes."""
+"""The frame every source yields and the tracker consumes, and its typed payloads.
+
+A frame carries the images, the calibration, the capture time and generic ground truth
+(``gt_T_world_cam``, ``gt_box_xywh``). Anything source-specific travels as *payloads*:
+frozen dataclasses deriving from :class:`FramePayload`, declared by the module that
+produces them (the built-in studio's truth in :mod:`engine.studio.sim`, the pan-tilt head
+reading in :mod:`engine.ptz.kinematics`, range readings in :mod:`engine.sources.beacons`...)
+and looked up by type::
+
+    truth = frame.payload(StudioTruth)      # StudioTruth | None
+    if truth is not None and truth.covered: ...
+
+A payload whose class sets ``light = False`` holds images (label maps, exact depth); the
+pipeline's history keeps only light payloads.
+"""
 
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import ClassVar, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +34,32 @@ def readonly(a: np.ndarray | None) -> np.ndarray | None:
     return a
 
 
+class FramePayload:
+    """Base of the typed, frozen data a source attaches to a frame.
+
+    Subclasses are ``@dataclass(frozen=True, slots=True)``; ``light`` says whether the
+    payload is small enough to be kept in the run history (no images).
+    """
+
+    __slots__ = ()
+    light: ClassVar[bool] = True
+
+
+P = TypeVar("P", bound=FramePayload)
+
+
+@dataclass(frozen=True, slots=True)
+class SourceFiles(FramePayload):
+    """Where a frame was read from (file sources): the colour image or video, the depth."""
+
+    color_path: str | None = None
+    depth_path: str | None = None
+
+
+def _now() -> float:
+    return time.monotonic()
+
+
 @dataclass(frozen=True, slots=True)
 class Frame:
     """One time step of a source.
@@ -26,7 +68,11 @@ class Frame:
     (range beacons); ``depth_m`` is float32 (H, W) metres with 0 where invalid.
     ``gt_T_world_cam`` is the ground-truth camera pose if known; ``gt_box_xywh`` the
     ground-truth target box (OTB convention: top-left x, y, width, height) if known.
-    ``extras`` carries source-specific data (e.g. range readings, presenter truth).
+    ``capture_mono_s`` is when the frame came to be, on ``time.monotonic()`` (a live source
+    sets its grab time; by default the time the frame object was made, i.e. read or
+    rendered); ``depth_timestamp_s`` is the depth image's own time stamp on the
+    ``timestamp_s`` clock when the sensor gives one (TUM). ``payloads`` are the
+    source-specific typed data (see the module docstring).
     ``skipped_before`` is the number of frames a live source dropped since the previous frame
     it yielded because the consumer was slower (the newest-frame policy of
     :mod:`engine.sources.grabber`; 0 for recorded sources). ``link_lost_reason`` is set (e.g.
@@ -41,7 +87,9 @@ class Frame:
     depth_m: NDArray[np.float32] | None = None
     gt_T_world_cam: NDArray[np.float64] | None = None
     gt_box_xywh: tuple[float, float, float, float] | None = None
-    extras: dict[str, Any] = field(default_factory=dict)
+    payloads: tuple[FramePayload, ...] = ()
+    capture_mono_s: float = field(default_factory=_now)
+    depth_timestamp_s: float | None = None
     skipped_before: int = 0
     link_lost_reason: str | None = None
 
@@ -49,6 +97,17 @@ class Frame:
         readonly(self.color_bgr)
         readonly(self.depth_m)
         readonly(self.gt_T_world_cam)
+        if not isinstance(self.payloads, tuple):
+            object.__setattr__(self, "payloads", tuple(self.payloads))
+        if not math.isfinite(self.capture_mono_s):
+            object.__setattr__(self, "capture_mono_s", _now())
+
+    def payload(self, kind: type[P]) -> P | None:
+        """The frame's payload of type ``kind`` (or a subclass), None if it has none."""
+        for p in self.payloads:
+            if isinstance(p, kind):
+                return p
+        return None
 
     @property
     def gray_f32(self) -> NDArray[np.float32]:

@@ -1,7 +1,8 @@
 """Run a tracker over a whole source and summarise it (used by ``studiotrack track`` and benches).
 
-:func:`run_tracker` drives :func:`engine.loop.run_tracking` and keeps only what evaluation
-needs (stamps, poses, boxes, states, timings, ground truth) - never the images.
+:func:`run_tracker` drives :func:`engine.loop.run_tracking` (the pipeline, with any sinks
+such as pose outputs) and keeps only what evaluation needs (stamps, poses, boxes, states,
+timings, ground truth) - never the images.
 :func:`summarize` turns a run into the machine-readable result::
 
     frames, tracked, lost_frames, ms_per_frame{median, p95},
@@ -21,7 +22,7 @@ matches) is null with the reason in ``notes``.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -82,8 +83,11 @@ def run_tracker(
     max_frames: int | None = None,
     should_stop: Callable[[], bool] = lambda: False,
     on_record: Callable[[FrameRecord], None] | None = None,
+    sinks: Sequence[Any] = (),
 ) -> TrackingRun:
-    """Track ``source`` with ``tracker`` to the end (or ``max_frames``) and collect the run."""
+    """Track ``source`` with ``tracker`` to the end (or ``max_frames``) and collect the run.
+
+    ``sinks`` (:class:`engine.pipeline.Sink`) get every record, e.g. pose outputs."""
     stamps: list[float] = []
     states: list[TrackState] = []
     poses: list[F64] = []
@@ -93,7 +97,8 @@ def run_tracker(
     gt_boxes: list[F64] = []
     nan44 = np.full((4, 4), np.nan)
     nan4 = np.full(4, np.nan)
-    for rec in run_tracking(source, tracker, should_stop=should_stop, max_frames=max_frames):
+    for rec in run_tracking(source, tracker, should_stop=should_stop, max_frames=max_frames,
+                            sinks=sinks):
         res, fr = rec.result, rec.frame
         stamps.append(float(fr.timestamp_s))
         states.append(res.state)

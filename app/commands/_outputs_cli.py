@@ -1,8 +1,10 @@
 """Command-line options for pose outputs, shared by ``track``, ``record`` and benches.
 
 ``add_output_arguments(parser)`` adds ``--freed HOST:PORT``, ``--opentrackio HOST:PORT[,cbor]``
-and their settings; ``outputs_from_args(args)`` returns a started
-:class:`engine.outputs.sender.OutputSet` or None when no output was asked for.
+and their settings; ``config_from_args(args)`` the :class:`engine.outputs.sender.OutputConfig`
+(None when no output was asked for; a host that does not resolve is refused in one line),
+``output_sink(args)`` the :class:`engine.sinks.pose_output.PoseOutputSink` a pipeline feeds
+(one packet per record for headless runs; ``--output-rate HZ`` clocks them at that rate).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +70,9 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
                    help="sensor width used to express focal length in mm (default 9.59, 2/3\")")
     g.add_argument("--studio-frame", type=Path, default=None, metavar="FILE.json",
                    help="studio frame JSON ({\"T_world_studio\": 4x4}); default identity")
+    g.add_argument("--output-rate", default=None, metavar="HZ",
+                   help="send at this video rate (23.976, 24, 25, 29.97, 30, 50, 59.94, 60) "
+                   "from the output clock instead of one packet per tracked frame")
 
 
 def _delays(text: str | None) -> Any:
@@ -95,8 +100,9 @@ def config_from_args(args: argparse.Namespace) -> Any:
     from dataclasses import replace
 
     from engine.outputs import opentrackio as ot
+    from engine.outputs.clock import parse_rate
     from engine.outputs.freed import ZoomFocusMapping
-    from engine.outputs.sender import FreeDSettings, OutputConfig
+    from engine.outputs.sender import FreeDSettings, OutputConfig, check_targets
     from engine.outputs.studio_frame import StudioFrame
 
     freed = list(getattr(args, "freed", None) or [])
@@ -118,7 +124,8 @@ def config_from_args(args: argparse.Namespace) -> Any:
             studio = StudioFrame.from_json_dict(json.loads(Path(sf_path).read_text()))
         except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
             raise OutputError(f"{sf_path}: cannot read studio frame ({exc})") from None
-    return OutputConfig(
+    rate = getattr(args, "output_rate", None)
+    cfg = OutputConfig(
         targets=tuple(targets),
         freed=FreeDSettings(
             camera_id=int(getattr(args, "freed_camera_id", 1)),
@@ -128,44 +135,52 @@ def config_from_args(args: argparse.Namespace) -> Any:
         lens=ot.LensInfo(sensor_width_mm=float(getattr(args, "sensor_width_mm", 9.59))),
         delays=_delays(getattr(args, "output_delay_ms", None)),
         studio=studio,
+        rate_hz=None if rate is None else parse_rate(rate),
     )
+    check_targets(cfg)
+    return cfg
 
 
-def outputs_from_args(args: argparse.Namespace) -> Any:
-    """A started OutputSet for the options, or None. Call ``.close()`` when done."""
-    from engine.outputs.sender import OutputSet
+def output_sink(args: argparse.Namespace) -> Any:
+    """The pose-output sink for the options, or None when no output was asked for.
+
+    Headless runs send one packet per tracked frame unless ``--output-rate`` clocks them.
+    """
+    from engine.sinks.pose_output import PoseOutputSink
 
     cfg = config_from_args(args)
     if cfg is None:
         return None
-    return OutputSet(cfg)
+    return PoseOutputSink(cfg, clocked=cfg.rate_hz is not None)
 
 
-def describe(outputs: Any) -> str:
+def describe(sink: Any) -> str:
     """One line per target for the log: where it sends and what it is bound to."""
-    st = outputs.stats()
-    return "; ".join(f"{t.name} (bind {t.bind})" for t in st.targets)
+    return "; ".join(f"{t.name} (bind {t.effective_bind})" for t in sink.config.targets)
+
+
+def report(sink: Any) -> dict[str, Any] | None:
+    """Log the per-target counts after a run; the sender statistics (for ``--json``)."""
+    st = sink.stats()
+    if st is None:
+        return None
+    log("outputs sent: " + "; ".join(
+        f"{t.name} {t.packets_sent} packets, {t.errors} errors"
+        + (f" (last: {t.last_error})" if t.last_error else "") for t in st.targets)
+        + f"; dropped {st.dropped}")
+    return dict(st.to_json_dict())
 
 
 @contextlib.contextmanager
-def sending(args: argparse.Namespace) -> Iterator[Callable[[Any], None]]:
-    """``with sending(args) as send: ... send(record)`` - a no-op when no output was asked.
-
-    Opens the outputs the options describe, logs where they send (and the bind address),
-    and on exit flushes, logs the per-target packet counts and closes the sender.
-    """
-    outputs = outputs_from_args(args)
-    if outputs is None:
-        yield lambda _record: None
+def sending(args: argparse.Namespace) -> Iterator[list[Any]]:
+    """``with sending(args) as sinks: run_tracker(..., sinks=sinks)`` - empty when no output
+    was asked; logs where the outputs send and, at the end, what they sent."""
+    sink = output_sink(args)
+    if sink is None:
+        yield []
         return
-    log(f"outputs: {describe(outputs)}")
+    log(f"outputs: {describe(sink)}")
     try:
-        yield outputs.submit_record
+        yield [sink]
     finally:
-        outputs.flush(5.0)
-        st = outputs.stats()
-        log("outputs sent: " + "; ".join(
-            f"{t.name} {t.packets_sent} packets, {t.errors} errors"
-            + (f" (last: {t.last_error})" if t.last_error else "") for t in st.targets)
-            + f"; dropped {st.dropped}")
-        outputs.close()
+        report(sink)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from app.commands import CommandSpec
 from app.commands._common import emit_json, log
-from app.commands._outputs_cli import add_output_arguments, describe, outputs_from_args
+from app.commands._outputs_cli import add_output_arguments, describe, output_sink, report
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,7 +34,7 @@ def _run(args: argparse.Namespace) -> int:
     name = args.tracker or default_tracker_name()
     source = open_source(args.source)
     tracker = create_tracker(name)
-    outputs = outputs_from_args(args)
+    outputs = output_sink(args)
     if outputs is not None:
         log(f"outputs: {describe(outputs)}")
     n = 0
@@ -50,7 +50,7 @@ def _run(args: argparse.Namespace) -> int:
                 log(f"recorded {n} frames ({r.fps:.1f} fps, {r.result.state.value})")
     finally:
         if outputs is not None:
-            outputs.close()
+            report(outputs)
         source.close()
     log(f"session {args.out}: {n} frames")
     emit_json({"frames": n, "session": str(args.out), "tracker": name, "status": "complete"})

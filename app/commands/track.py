@@ -127,14 +127,9 @@ def run(args: argparse.Namespace) -> int:
             log(f"  frame {rec.seq + 1}/{total or '?'}  {rec.result.state.value}"
                 f"  {rec.process_ms:.1f} ms")
 
-    with source, sending(args) as send:  # --freed / --opentrackio: one packet per frame
-
-        def on_record(rec: FrameRecord) -> None:
-            progress(rec)
-            send(rec)
-
+    with source, sending(args) as sinks:  # --freed / --opentrackio: pose-output sink
         tr_run = run_tracker(source, tracker, output=spec.output, max_frames=args.max_frames,
-                             on_record=on_record)
+                             on_record=progress, sinks=sinks)
     if len(tr_run) == 0:
         raise TrackerError(f"{args.source}: the source yielded no frames")
     _write_output(out_path, tr_run)

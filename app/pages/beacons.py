@@ -392,7 +392,10 @@ class BeaconsPage(QWidget):
             return
         est = (float(res.T_world_cam[0, 3]), float(res.T_world_cam[1, 3]))
         self.est_path.append(est)
-        gt = rec.frame.extras.get("gt_xy")
+        from engine.sources.beacons import BeaconTruth
+
+        truth = rec.frame.payload(BeaconTruth)
+        gt = truth.gt_xy if truth is not None else None
         if gt is not None:
             self.true_path.append(gt)
             self.errors_m.append(math.hypot(est[0] - gt[0], est[1] - gt[1]))
@@ -417,20 +420,25 @@ class BeaconsPage(QWidget):
         if not self.errors_m:
             return prefix
         rec = self._latest
-        ex = rec.result.extras if rec is not None else {}
+        from engine.sources.beacons import BeaconTruth
+        from engine.trackers.beacon_slam import BeaconDetails
+
+        ex = rec.result.details_as(BeaconDetails) if rec is not None else None
         e = np.asarray(self.errors_m)
         rmse = math.sqrt(float(np.mean(e**2)))
-        text = (f"{prefix}: step {len(e) - 1}, error {e[-1]:.2f} m, RMSE {rmse:.2f} m"
-                f", ESS {ex.get('ess', float('nan')):.0f}/{ex.get('n_particles', 0)}")
-        gt_b = rec.frame.extras.get("gt_beacons") if rec is not None else None
-        if gt_b and "beacons_xy" in ex:
+        text = f"{prefix}: step {len(e) - 1}, error {e[-1]:.2f} m, RMSE {rmse:.2f} m"
+        if ex is not None:
+            text += f", ESS {ex.ess:.0f}/{ex.n_particles}"
+        truth = rec.frame.payload(BeaconTruth) if rec is not None else None
+        gt_b = truth.gt_beacons if truth is not None else None
+        if gt_b and ex is not None:
             errs = [float(np.hypot(*(np.asarray(b) - gt_b[i])))
-                    for i, b in zip(ex["beacon_ids"], ex["beacons_xy"], strict=True)
+                    for i, b in zip(ex.beacon_ids, ex.beacons_xy, strict=True)
                     if i in gt_b and np.all(np.isfinite(b))]
             if errs:
                 text += f", beacon error {np.mean(errs):.2f} m"
-        if ex.get("outlier_ids"):
-            text += f", outliers now: {', '.join(ex['outlier_ids'])}"
+        if ex is not None and ex.outlier_ids:
+            text += f", outliers now: {', '.join(ex.outlier_ids)}"
         return text
 
     # ------------------------------------------------------------------ drawing
@@ -451,12 +459,14 @@ class BeaconsPage(QWidget):
             self.err_item.setData(np.arange(len(self.errors_m)), np.asarray(self.errors_m))
         if rec is None:
             return
-        ex = rec.result.extras
-        parts = ex.get("particles_xy")
+        from engine.trackers.beacon_slam import BeaconDetails
+
+        ex = rec.result.details_as(BeaconDetails)
+        parts = ex.particles_xy if ex is not None else None
         if parts is not None:
             self.particles_item.setData(parts[:, 0], parts[:, 1])
-        b_xy = ex.get("beacons_xy")
-        b_cov = ex.get("beacons_cov")
+        b_xy = ex.beacons_xy if ex is not None else None
+        b_cov = ex.beacons_cov if ex is not None else None
         if b_xy is not None and b_cov is not None:
             ok = np.all(np.isfinite(b_xy), axis=1)
             self.est_beacons_item.setData(b_xy[ok, 0], b_xy[ok, 1])

@@ -587,12 +587,14 @@ class PresenterPage(QWidget):
     def _on_record(self, record: Any) -> None:
         self.latest = record
         self._frames += 1
-        ex = record.result.extras
-        if "p_col" in ex:
-            self.hist_p.append((max(ex["p_col"], 1e-12), max(ex["p_min"], 1e-12),
-                                max(ex["p_ref"], 1e-12)))
-            raw, filt = ex["raw_xyh"], ex["filtered_xyh"]
-            d = ex.get("d_m")
+        from engine.trackers.presenter import PresenterDetails
+
+        ex = record.result.details_as(PresenterDetails)
+        if ex is not None:
+            self.hist_p.append((max(ex.p_col, 1e-12), max(ex.p_min, 1e-12),
+                                max(ex.p_ref, 1e-12)))
+            raw, filt = ex.raw_xyh, ex.filtered_xyh
+            d = ex.d_m
             self.hist_xy.append((raw[0], filt[0], raw[1], filt[1],
                                  float("nan") if d is None else d))
 
@@ -606,7 +608,9 @@ class PresenterPage(QWidget):
         ov = res.overlay
         boxes: list[tuple[Any, str]] = []
         cross = None
-        ex = res.extras
+        from engine.trackers.presenter import PresenterDetails
+
+        ex = res.details_as(PresenterDetails)
         if ov is not None:
             if self.boxes_radio.isChecked():
                 boxes = list(zip(ov.boxes_xywh, ov.box_labels, strict=False))
@@ -616,16 +620,16 @@ class PresenterPage(QWidget):
         if ov is not None and self.particles_check.isChecked():
             parts, weights = ov.points_uv, ov.point_weights
         target = None
-        cmd = ex.get("control")
+        cmd = ex.control if ex is not None else None
         if cmd is not None:
             target = (cmd.target_x_px, cmd.target_y_px)
         self.canvas.set_live(boxes, cross, parts, weights, target)
         self.light.set_state(res.state)
-        if "p_col" in ex:
+        if ex is not None:
             self.readout.setText(
-                f"P {ex['p_col']:.3g}   Pref {ex['p_ref']:.3g}   Pmin {ex['p_min']:.3g}\n"
-                f"particles {ex['n_particles']}   lost frames {ex['lost_frames']}\n"
-                f"jitter lag {ex['lag_frames']:.1f} frames = {ex['lag_s']:.2f} s   "
+                f"P {ex.p_col:.3g}   Pref {ex.p_ref:.3g}   Pmin {ex.p_min:.3g}\n"
+                f"particles {ex.n_particles}   lost frames {ex.lost_frames}\n"
+                f"jitter lag {ex.lag_frames:.1f} frames = {ex.lag_s:.2f} s   "
                 f"{rec.fps:.0f} fps")
         if cmd is not None:
             p = self.form.params

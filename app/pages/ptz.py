@@ -528,29 +528,32 @@ class LivePanel(QWidget):
     def _on_record(self, rec: Any) -> None:
         self._latest = rec
         self._dirty = True
-        ex = rec.result.extras
-        if "target_xyz" not in ex:
+        from engine.ptz.sim import PtzTargetTruth
+        from engine.trackers.ptz import PtzDetails
+
+        ex = rec.result.details_as(PtzDetails)
+        if ex is None or ex.target_xyz is None:
             return
-        x = np.concatenate([ex["target_xyz"], ex["target_vel"], ex["target_acc"]])
+        x = np.concatenate([ex.target_xyz, ex.target_vel, ex.target_acc])
         order = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
-        sig = np.sqrt(np.clip(np.diag(ex["target_cov"])[order], 0, None))
-        fe = rec.frame.extras
-        tru = np.concatenate([fe.get("target_xyz_world", np.full(3, np.nan)),
-                              fe.get("target_vel_world", np.full(3, np.nan)),
-                              fe.get("target_acc_world", np.full(3, np.nan))])
+        sig = np.sqrt(np.clip(np.diag(ex.target_cov)[order], 0, None))
+        fe = rec.frame.payload(PtzTargetTruth)
+        nan3 = (np.nan, np.nan, np.nan)
+        tru = np.concatenate([fe.xyz_world if fe else nan3, fe.vel_world if fe else nan3,
+                              fe.acc_world if fe else nan3])
         self.t.append(rec.frame.timestamp_s)
         self.est.append(x)
         self.sig.append(sig)
         self.truth.append(tru)
-        self.probs.append(np.asarray(ex["model_probs"]))
-        self.omega.append(float(ex["omega_rad_s"]))
-        self.omega_true.append(float(fe.get("target_omega_rad_s", np.nan)))
+        self.probs.append(np.asarray(ex.model_probs))
+        self.omega.append(float(ex.omega_rad_s or 0.0))
+        self.omega_true.append(float(fe.omega_rad_s) if fe else np.nan)
         if len(self.t) > HISTORY:
             for lst in (self.t, self.est, self.sig, self.truth, self.probs, self.omega,
                         self.omega_true):
                 del lst[0]
-        if not self.p_curves and "omegas" in ex:
-            for j, w in enumerate(ex["omegas"]):
+        if not self.p_curves and ex.omegas is not None:
+            for j, w in enumerate(ex.omegas):
                 self.p_curves.append(self.pplot.plot(
                     pen=pg.mkPen(MODEL_COLOURS[j % len(MODEL_COLOURS)], width=2),
                     name=f"p{j + 1} ω={w:.3f}"))
@@ -578,7 +581,8 @@ class LivePanel(QWidget):
             self.final_contour.setData(polys[-1][:, 0], polys[-1][:, 1])
         if ov is not None and ov.crosshair_uv is not None:
             self.centre.setData([ov.crosshair_uv[0]], [ov.crosshair_uv[1]])
-        pu = rec.result.extras.get("predicted_uv")
+        det = rec.result.details
+        pu = getattr(det, "predicted_uv", None)
         self.pred.setData(*(([pu[0]], [pu[1]]) if pu else ([], [])))
         if not self.t:
             return
@@ -602,16 +606,17 @@ class LivePanel(QWidget):
                 hi.setData(t, E[:, i] + 2 * S[:, i])
                 est.setData(t, E[:, i])
                 tru.setData(t, T[:, i])
-        ex = rec.result.extras
+        ex = rec.result.details
         err = float(np.linalg.norm(E[-1, :3] - T[-1, :3]))
-        meas = ex.get("measurement")
+        meas = getattr(ex, "measurement", None)
         self.readout.setText(
             f"{rec.result.state.value}  t={t[-1]:.1f} s  d={meas[2]:.2f} m  " if meas else
             f"{rec.result.state.value}  t={t[-1]:.1f} s  "
         )
         self.readout.setText(
             self.readout.text() + f"pos err {err * 100:.1f} cm  ω̂={self.omega[-1]:.3f} rad/s  "
-            f"pan/tilt {_deg_pair(ex.get('ptz_pan_tilt_deg'))}  resets {ex.get('resets')}  "
+            f"pan/tilt {_deg_pair(getattr(ex, 'pan_tilt_deg', None))}  "
+            f"resets {getattr(ex, 'resets', '–')}  "
             f"{1000.0 / max(rec.process_ms, 1e-3):.0f} updates/s"
         )
 

@@ -164,9 +164,11 @@ def _sweep_store(points: int, kf_dist: float) -> Any:
 
 
 def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    from engine.dense.details import DenseDetails
     from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
     from engine.sources import open_source
+    from engine.studio.sim import StudioTruth
     from engine.trackers import create_tracker
 
     spec = _rail_spec(args.cycles, args.cycle_s, args.presenter_cycles)
@@ -200,9 +202,11 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
         err_i.append(_terr(ri.T_world_cam, f.gt_T_world_cam))
         lost_d += 0 if rd.state.is_good else 1
         lost_i += 0 if ri.state.is_good else 1
-        if "frames_to_relock" in rd.extras:
-            relock.append(int(rd.extras["frames_to_relock"]))
-        presenter.append(bool(f.extras.get("presenter_pixels") or 0))
+        dd = rd.details_as(DenseDetails)
+        if dd is not None and dd.frames_to_relock is not None:
+            relock.append(int(dd.frames_to_relock))
+        truth = f.payload(StudioTruth)
+        presenter.append(bool(truth is not None and truth.presenter_pixels))
         if f.index % 180 == 0:
             log(f"  frame {f.index}/{n}: dense {err_d[-1] * 1e3:.1f} mm, "
                  f"incremental {err_i[-1] * 1e3:.1f} mm")

@@ -178,6 +178,7 @@ def _bench_fusion(args: argparse.Namespace) -> dict[str, Any]:
     from engine.keyframes.store import KeyframeStore
     from engine.progress import log
     from engine.sources.synthetic import SyntheticSource, config_from_options
+    from engine.studio.sim import StudioLabels
 
     src = SyntheticSource(
         config_from_options(
@@ -202,7 +203,10 @@ def _bench_fusion(args: argparse.Namespace) -> dict[str, Any]:
         gray = cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY)
         if i in kf_idx:
             kf = store.add(f.gt_T_world_cam, gray, np.array(f.depth_m))
-            exact[kf.id] = f.extras["depth_exact_m"]
+            labels = f.payload(StudioLabels)
+            assert labels is not None
+            assert labels.depth_exact_m is not None
+            exact[kf.id] = labels.depth_exact_m
         else:
             posed.append(PosedFrame(i, gray, f.depth_m, f.gt_T_world_cam))
         if i % 50 == 0:

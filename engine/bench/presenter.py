@@ -80,8 +80,27 @@ def _frames_from_scene(n: int, **kw: Any) -> list[Frame]:
     from engine.presenter.scene import presenter_frames
 
     return [Frame(index=f.index, timestamp_s=f.index / 30.0, color_bgr=f.bgr,
-                  gt_box_xywh=f.box_xywh, extras={"part_boxes": f.part_boxes})
+                  gt_box_xywh=f.box_xywh)
             for f in presenter_frames(n, **kw)]
+
+
+def _presenter_pixels(f: Frame) -> float:
+    """Visible presenter pixels (the studio's labels); without them 1 if a box, else 0."""
+    from engine.studio.sim import StudioTruth
+
+    truth = f.payload(StudioTruth)
+    if truth is not None and truth.presenter_pixels is not None:
+        return float(truth.presenter_pixels)
+    return 0.0 if f.gt_box_xywh is None else 1.0
+
+
+def _det(r: Any) -> Any:
+    from engine.trackers.presenter import PresenterDetails
+
+    d = r.details_as(PresenterDetails)
+    if d is None:
+        raise RuntimeError("presenter result without details (not initialised)")
+    return d
 
 
 def studio_frames(n: int, scenario: str = "walk") -> tuple[list[Frame], str]:
@@ -157,8 +176,7 @@ def loss_scenario(n: int) -> dict[str, Any]:
     results, _ = run_tracker(tracker, frames)
     # "left" = less than half of the presenter's pixels still in view; "back" = more than
     # half again (pixel counts from the renderer's labels; gt None means none in view)
-    pix = np.array([float(f.extras.get("presenter_pixels", 0 if f.gt_box_xywh is None else 1))
-                    for f in frames])
+    pix = np.array([_presenter_pixels(f) for f in frames])
     full = float(pix[0]) if pix[0] > 0 else 1.0
     present = pix >= 0.5 * full
     leave = next((i for i, p in enumerate(present) if not p), None)
@@ -212,8 +230,8 @@ def jitter_scenario(n: int) -> dict[str, Any]:
     tracker = _make("presenter", 100)
     results, _ = run_tracker(tracker, frames)
     settle = min(30, n // 3)
-    filt = np.array([r.extras["filtered_xyh"][:2] for r in results[settle:]])
-    raw = np.array([r.extras["raw_xyh"][:2] for r in results[settle:]])
+    filt = np.array([_det(r).filtered_xyh[:2] for r in results[settle:]])
+    raw = np.array([_det(r).raw_xyh[:2] for r in results[settle:]])
     p = tracker.params
     out: dict[str, Any] = {
         "source": spec,
@@ -225,8 +243,8 @@ def jitter_scenario(n: int) -> dict[str, Any]:
     wframes, _ = studio_frames(n, "walk_static")
     wtracker = _make("presenter", 100)
     wres, _ = run_tracker(wtracker, wframes)
-    fx = np.array([r.extras["filtered_xyh"][0] for r in wres])
-    rx = np.array([r.extras["raw_xyh"][0] for r in wres])
+    fx = np.array([_det(r).filtered_xyh[0] for r in wres])
+    rx = np.array([_det(r).raw_xyh[0] for r in wres])
     gtx = np.array([f.gt_box_xywh[0] + f.gt_box_xywh[2] / 2 if f.gt_box_xywh else np.nan
                     for f in wframes])
     speed = float(np.nanmedian(np.abs(np.diff(gtx)))) if len(gtx) > 2 else float("nan")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import glob
 import math
-import time
 from pathlib import Path
 from typing import Any
 
@@ -38,8 +37,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
-    from engine.ptz.sim import CircleScenario, PtzSimSource
-    from engine.trackers.ptz import PtzParams, PtzTracker
+    from engine.loop import run_tracking
+    from engine.ptz.sim import CircleScenario, PtzSimSource, PtzTargetTruth
+    from engine.trackers.ptz import PtzDetails, PtzParams, PtzTracker
 
     sc = CircleScenario(duration_s=duration_s, period_s=period_s)
     src = PtzSimSource(sc)
@@ -48,23 +48,28 @@ def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
     tr = PtzTracker(params)
     t_s, ep, ev, ea, dist, probs, omg, tms = [], [], [], [], [], [], [], []
     resets = 0
-    for f in src.frames():
-        t0 = time.perf_counter()
-        r = tr.track(f)
-        tms.append(time.perf_counter() - t0)
-        if "target_xyz" not in r.extras:
+    # the pipeline closes the loop: the source's head sink moves the camera on each command
+    for rec in run_tracking(src, tr):
+        f, r = rec.frame, rec.result
+        tms.append(rec.process_ms / 1000.0)
+        d = r.details_as(PtzDetails)
+        truth = f.payload(PtzTargetTruth)
+        if d is None or d.target_xyz is None or truth is None or f.gt_T_world_cam is None:
             continue
+        assert d.target_vel is not None
+        assert d.target_acc is not None
         t_s.append(f.timestamp_s)
-        ep.append(float(np.linalg.norm(r.extras["target_xyz"] - f.extras["target_xyz_world"])))
-        ev.append(float(np.linalg.norm(r.extras["target_vel"] - f.extras["target_vel_world"])))
-        ea.append(float(np.linalg.norm(r.extras["target_acc"] - f.extras["target_acc_world"])))
-        dist.append(float(np.linalg.norm(f.extras["target_xyz_world"] - f.gt_T_world_cam[:3, 3])))
-        probs.append(r.extras["model_probs"])
-        omg.append(r.extras["omega_rad_s"])
-        resets = int(r.extras["resets"])
+        ep.append(float(np.linalg.norm(d.target_xyz - np.asarray(truth.xyz_world))))
+        ev.append(float(np.linalg.norm(d.target_vel - np.asarray(truth.vel_world))))
+        ea.append(float(np.linalg.norm(d.target_acc - np.asarray(truth.acc_world))))
+        dist.append(float(np.linalg.norm(np.asarray(truth.xyz_world)
+                                         - f.gt_T_world_cam[:3, 3])))
+        probs.append(d.model_probs)
+        omg.append(d.omega_rad_s)
+        resets = int(d.resets)
         if f.index % 300 == 0:
             log(f"  circle t={f.timestamp_s:5.1f}s d={dist[-1]:.2f}m pos err={ep[-1]*100:.1f}cm "
-                 f"p={np.round(r.extras['model_probs'], 3).tolist()}")
+                f"p={np.round(np.asarray(d.model_probs), 3).tolist()}")
     t = np.asarray(t_s)
     ep_a, ev_a, ea_a, d_a = map(np.asarray, (ep, ev, ea, dist))
     steady = t >= min(20.0, 0.3 * duration_s)

@@ -51,7 +51,7 @@ def _project_full(
     return fx * xd + cx, fy * yd + cy
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def histogram_median(a: np.ndarray, mask: np.ndarray, nbins: int) -> float:
     """Approximate median of ``a[mask]`` (non-negative) with two ``nbins`` histograms.
 
@@ -68,7 +68,7 @@ def histogram_median(a: np.ndarray, mask: np.ndarray, nbins: int) -> float:
     return _histogram_median_known(a, mask, n, hi, nbins)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _histogram_median_known(
     a: np.ndarray, mask: np.ndarray, n: int, hi: float, nbins: int
 ) -> float:
@@ -132,7 +132,7 @@ def _abs_and_keep(
     return n_keep, hi
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tukey_weights(e_abs: np.ndarray, mask: np.ndarray, median: float, out: np.ndarray) -> None:
     """Eq. (9)-(10): u = |e| / (c median), w = (1 - (u/b)^2)^2 for u <= b else 0."""
     scale = TUKEY_C * max(median, 1e-6)
@@ -148,7 +148,7 @@ def tukey_weights(e_abs: np.ndarray, mask: np.ndarray, median: float, out: np.nd
             out[i] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _se3_exp(x: np.ndarray) -> np.ndarray:
     """Closed-form SE(3) exponential, eq. (5), with series near zero angle."""
     v0, v1, v2 = x[0], x[1], x[2]
@@ -177,7 +177,7 @@ def _se3_exp(x: np.ndarray) -> np.ndarray:
     return T
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _accumulate(
     Jl: np.ndarray, e: np.ndarray, e_abs: np.ndarray, wz: np.ndarray, keep: np.ndarray,
     scale: float, wc: np.ndarray, H: np.ndarray, g: np.ndarray,
@@ -257,7 +257,7 @@ def _accumulate(
     g[5] = g5
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     """Solve H x = g for a 6x6 symmetric positive-definite H by Cholesky (sec. 4.3)."""
     n = 6
@@ -288,7 +288,7 @@ def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     return x, True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def evaluate(
     P: np.ndarray,
     cstar: np.ndarray,
@@ -358,7 +358,7 @@ def evaluate(
     return nvalid
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fit_gain(
     cs: np.ndarray, e: np.ndarray, valid: np.ndarray, wz: np.ndarray, beta0: float,
     tmp: np.ndarray,
@@ -397,7 +397,7 @@ def _fit_gain(
     return alpha, (swy - alpha * swx) / sw
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def evaluate_geometric(
     P: np.ndarray,
     N: np.ndarray,
@@ -451,7 +451,7 @@ def evaluate_geometric(
     return cnt
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def minimize(
     P: np.ndarray,
     cstar: np.ndarray,
@@ -618,7 +618,7 @@ def minimize(
     return T, stats
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def precompute_reference(
     P: np.ndarray,
     img0: np.ndarray,

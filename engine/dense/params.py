@@ -148,7 +148,7 @@ class DenseParams:
     compensate_depth_delay: bool = field(
         default=True,
         metadata={"help": "move reference points by the camera motion between the depth and "
-                  "colour timestamps (frame.extras['depth_timestamp_s'], e.g. TUM)"},
+                  "colour timestamps (Frame.depth_timestamp_s, e.g. TUM)"},
     )
     anchor_to_ground_truth: bool = field(
         default=True,

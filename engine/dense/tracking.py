@@ -7,8 +7,9 @@ inlier fraction falls below ``min_inlier_fraction``, the median |residual| excee
 ``max_step_deg`` from its initial guess (divergence). A bad frame reports LOST and holds the
 last good pose (never extrapolated). While lost, each frame tries the nearest keyframes to
 the last good pose (``relocalize_candidates``, eq. (21) order); a success is reported as
-RELOCALIZING for ``relock_confirm_frames`` frames, then TRACKING. ``extras`` carries
-``frames_to_relock`` on the frame that relocked.
+RELOCALIZING for ``relock_confirm_frames`` frames, then TRACKING. ``details``
+(:class:`engine.dense.details.DenseDetails`) carries ``frames_to_relock`` on the frame that
+relocked.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
 from engine.dense import photometric as ph
+from engine.dense.details import DenseDetails
 from engine.dense.params import DenseParams
 from engine.dense.pyramid import gray_from_bgr
 from engine.errors import TrackerError
@@ -149,7 +151,7 @@ class _DenseBase:
     def _depth_delay_transform(self, frame: Frame | None) -> F64 | None:
         if frame is None or not self._params.compensate_depth_delay or self._velocity is None:
             return None
-        t_depth = frame.extras.get("depth_timestamp_s") if frame.extras else None
+        t_depth = frame.depth_timestamp_s
         if t_depth is None:
             return None
         dt = float(t_depth) - float(frame.timestamp_s)
@@ -242,7 +244,8 @@ class _DenseBase:
             keyframe_id=kf_id,
             timings_ms=timings,
             overlay=overlay,
-            extras=extras,
+            details=DenseDetails(**extras),
+            message=extras.get("lost_reason", ""),
         )
 
 

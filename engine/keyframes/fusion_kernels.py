@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def warp_into_keyframe(  # type: ignore[no-untyped-def]
     buf, cnt, depth, gray, kf_gray, rays_xy, T, intr, dist, has_dist, stride, zmin, zmax, tol
 ):
@@ -61,7 +61,7 @@ def warp_into_keyframe(  # type: ignore[no-untyped-def]
     return added
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def robust_inverse_depth(buf, cnt, delta, min_samples, out):  # type: ignore[no-untyped-def]
     """Per pixel: median m of the inverse depths, mean of the samples within m +- delta
     (Fig. 10); ``out`` keeps 0 where fewer than ``min_samples`` samples are in the window."""

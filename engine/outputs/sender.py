@@ -2,9 +2,12 @@
 
 Tracking never waits for the network. :meth:`OutputSet.submit` appends to a bounded queue and
 returns at once; when the queue is full the *oldest* sample is dropped and counted (a render
-engine wants the newest pose, not a backlog). A socket error (unreachable host, no route,
-interface down) is counted on its target with the message kept as ``last_error``; it never
-raises into the tracking loop.
+engine wants the newest pose, not a backlog). Packets leave per record (headless runs) or at
+the output rate (:class:`engine.outputs.clock.OutputClock`, on-air runs). A socket error
+(unreachable host, no route, interface down) is counted on its target with the message kept
+as ``last_error`` and its time, so a target is reported failing while its latest send failed;
+it never raises into the tracking loop. Host names are resolved when a configuration is
+checked (:func:`check_targets`, one-line refusal) and when a socket opens, never per packet.
 
 Sockets bind to 127.0.0.1 unless the operator chooses another address (``bind_host``), or the
 target itself is not on the loopback network, in which case the socket binds to 0.0.0.0 so
@@ -110,8 +113,12 @@ class OutputConfig:
     delays: DelayParams = field(default_factory=DelayParams)
     studio: StudioFrame = field(default_factory=StudioFrame)
     queue_size: int = 64
+    rate_hz: float | None = None  # on-air output rate; None: the source's frame rate
 
     def __post_init__(self) -> None:
+        if self.rate_hz is not None and not (math.isfinite(self.rate_hz)
+                                             and 1.0 <= self.rate_hz <= 240.0):
+            raise OutputError(f"output rate {self.rate_hz} Hz is outside 1..240")
         if not 1 <= self.opentrackio_source_number <= 200:
             raise OutputError(
                 f"OpenTrackIO source number {self.opentrackio_source_number} is outside 1..200"
@@ -122,7 +129,11 @@ class OutputConfig:
 
 @dataclass(frozen=True, slots=True)
 class OutputSample:
-    """What the tracking loop hands to the sender for one frame."""
+    """What the tracking loop hands to the sender for one frame.
+
+    ``capture_mono_s`` and ``done_mono_s`` (``time.monotonic()``: frame captured, tracker
+    done) give the end-to-end latency to the packet on the wire; 0 when unknown.
+    """
 
     seq: int
     timestamp_s: float
@@ -131,6 +142,8 @@ class OutputSample:
     intrinsics: Intrinsics | None = None
     wall_time_s: float = 0.0
     submit_mono_s: float = 0.0  # set by OutputSet.submit (queue latency statistics)
+    capture_mono_s: float = 0.0
+    done_mono_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.T_world_cam is not None and self.T_world_cam.flags.writeable:
@@ -149,6 +162,13 @@ class TargetStats:
     errors: int
     last_error: str
     rate_hz: float
+    last_ok_age_s: float = math.inf  # seconds since the last datagram left without error
+    last_error_age_s: float = math.inf  # seconds since the last failed send
+
+    @property
+    def failing(self) -> bool:
+        """The latest send attempt failed (an alarm: nothing reaches this target now)."""
+        return self.last_error_age_s < self.last_ok_age_s
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,6 +182,15 @@ class SenderStats:
     targets: tuple[TargetStats, ...]
     latency_p50_ms: float = float("nan")  # submit -> last datagram sent, last 600 samples
     latency_p95_ms: float = float("nan")
+    clocked: bool = False  # packets at the output rate (else one per record)
+    rate_hz: float = float("nan")  # the output rate in force
+    ticks: int = 0  # samples sent (clocked: output slots fired)
+    held_ticks: int = 0  # clocked: slots sent without a new pose (tracker late)
+    lost_ticks: int = 0  # slots/samples sent flagged LOST because the engine stalled/failed
+    missed_ticks: int = 0  # clocked: slots the sender thread could not keep (skipped)
+    capture_to_send_ms: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    done_to_send_ms: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    send_gap_ms: tuple[float, float, float] = (math.nan, math.nan, math.nan)  # p50 p99 max
 
     @property
     def packets_sent(self) -> int:
@@ -172,6 +201,9 @@ class SenderStats:
         return min((t.samples_sent for t in self.targets), default=0)
 
     def to_json_dict(self) -> dict[str, Any]:
+        def trio(v: tuple[float, float, float], keys: tuple[str, str, str]) -> dict[str, Any]:
+            return {k: (x if math.isfinite(x) else None) for k, x in zip(keys, v, strict=True)}
+
         return {
             "submitted": self.submitted,
             "dropped": self.dropped,
@@ -181,27 +213,75 @@ class SenderStats:
             "last_encode_error": self.last_encode_error,
             "latency_p50_ms": self.latency_p50_ms,
             "latency_p95_ms": self.latency_p95_ms,
+            "clocked": self.clocked,
+            "rate_hz": self.rate_hz if math.isfinite(self.rate_hz) else None,
+            "ticks": self.ticks,
+            "held_ticks": self.held_ticks,
+            "lost_ticks": self.lost_ticks,
+            "missed_ticks": self.missed_ticks,
+            "capture_to_send_ms": trio(self.capture_to_send_ms, ("p50", "p95", "max")),
+            "done_to_send_ms": trio(self.done_to_send_ms, ("p50", "p95", "max")),
+            "send_gap_ms": trio(self.send_gap_ms, ("p50", "p99", "max")),
             "targets": [
-                {k: getattr(t, k) for k in TargetStats.__slots__}
+                {k: getattr(t, k) for k in TargetStats.__slots__
+                 if k not in ("last_ok_age_s", "last_error_age_s")}
                 for t in self.targets
             ],
         }
+
+
+def resolve_target(spec: TargetSpec) -> str:
+    """The target's IPv4 address; a host that does not resolve raises one line.
+
+    Called when a configuration is applied (so a bad name is refused there) and when the
+    socket opens (so sending never waits for name resolution).
+    """
+    try:
+        return str(ipaddress.IPv4Address(spec.host))
+    except ValueError:
+        pass
+    try:
+        infos = socket.getaddrinfo(spec.host, spec.port, socket.AF_INET, socket.SOCK_DGRAM)
+    except (OSError, UnicodeError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise OutputError(f"{spec.protocol} target {spec.host!r}: cannot resolve "
+                          f"the host name ({why})") from None
+    if not infos:
+        raise OutputError(f"{spec.protocol} target {spec.host!r}: no IPv4 address")
+    return str(infos[0][4][0])
+
+
+def check_targets(config: OutputConfig) -> None:
+    """Refuse a configuration whose targets cannot be reached at all (one line).
+
+    Host names must resolve; a loopback bind address cannot reach another machine.
+    """
+    for t in config.targets:
+        addr = resolve_target(t)
+        bind = t.effective_bind
+        if bind.startswith("127.") and not ipaddress.ip_address(addr).is_loopback:
+            raise OutputError(f"{t.name}: a socket bound to {bind} cannot reach {t.host} "
+                              "(choose a network bind address)")
 
 
 class _Target:
     def __init__(self, spec: TargetSpec) -> None:
         self.spec = spec
         self.sock: socket.socket | None = None
+        self.addr: tuple[str, int] | None = None
         self.packets = 0
         self.samples = 0
         self.bytes = 0
         self.errors = 0
         self.last_error = ""
+        self.last_ok_mono = -math.inf
+        self.last_error_mono = -math.inf
         self.otio_seq = 0
         self.send_times: collections.deque[float] = collections.deque(maxlen=2048)
 
     def open(self) -> socket.socket:
         if self.sock is None:
+            self.addr = (resolve_target(self.spec), int(self.spec.port))
             s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             try:
                 s.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
@@ -213,6 +293,7 @@ class _Target:
                     if bind != "0.0.0.0":
                         s.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF,
                                      socket.inet_aton(bind))
+                s.setblocking(False)  # a full send buffer is an error, never a wait
             except OSError:
                 s.close()
                 raise
@@ -222,15 +303,20 @@ class _Target:
     def send(self, packets: Sequence[bytes]) -> None:
         try:
             sock = self.open()
+            assert self.addr is not None
             for p in packets:
-                sock.sendto(p, (self.spec.host, self.spec.port))
+                sock.sendto(p, self.addr)
                 self.packets += 1
                 self.bytes += len(p)
             self.samples += 1
-            self.send_times.append(time.monotonic())
-        except OSError as exc:
+            now = time.monotonic()
+            self.send_times.append(now)
+            self.last_ok_mono = now
+        except (OSError, OutputError) as exc:
             self.errors += 1
-            self.last_error = f"{self.spec.name}: {exc.strerror or exc}"
+            why = getattr(exc, "strerror", None) or str(exc)
+            self.last_error = why if isinstance(exc, OutputError) else f"{self.spec.name}: {why}"
+            self.last_error_mono = time.monotonic()
             # A fresh socket next time (e.g. after an interface came back).
             self.close()
 
@@ -258,6 +344,8 @@ class _Target:
             errors=self.errors,
             last_error=self.last_error,
             rate_hz=rate,
+            last_ok_age_s=now - self.last_ok_mono,
+            last_error_age_s=now - self.last_error_mono,
         )
 
 
@@ -281,10 +369,32 @@ def freed_packet(pose: StudioPose, settings: FreeDSettings, intr: Intrinsics | N
     )
 
 
-class OutputSet:
-    """Sender thread + targets. Use as a context manager or call :meth:`close`."""
+def _trio(values: collections.deque[float], q: tuple[float, float]) -> tuple[float, float, float]:
+    a = np.fromiter(values, dtype=np.float64)
+    if a.size == 0:
+        return (math.nan, math.nan, math.nan)
+    lo, hi = np.percentile(a, q)
+    return (float(lo), float(hi), float(a.max()))
 
-    def __init__(self, config: OutputConfig, *, start: bool = True) -> None:
+
+class OutputSet:
+    """Sender thread + targets. Use as a context manager or call :meth:`close`.
+
+    Two cadences:
+
+    - per record (default, ``rate_hz=None``): every submitted sample becomes one packet per
+      target, as fast as they come (headless ``track``/``record``/``soak``);
+    - clocked (``rate_hz`` given): packets leave at the output rate
+      (:class:`engine.outputs.clock.OutputClock`) with the newest delayed/interpolated pose;
+      slots without a new pose repeat the held one, and when no record came for
+      ``stale_after_s`` or :meth:`mark_lost` was called (engine failure) they carry the last
+      good pose flagged LOST until :meth:`close`.
+    """
+
+    def __init__(self, config: OutputConfig, *, start: bool = True,
+                 rate_hz: float | None = None, stale_after_s: float | None = None) -> None:
+        from engine.outputs.clock import OutputClock
+
         self._config = config
         self._targets = [_Target(t) for t in config.targets]
         self._queue: collections.deque[OutputSample] = collections.deque()
@@ -302,11 +412,26 @@ class OutputSet:
             source_number=config.opentrackio_source_number, lens=config.lens
         )
         self._last_t: float | None = None
-        self._rate_hz = 30.0
-        self._rate_measured = False
+        self._rate_hz = 30.0 if rate_hz is None else float(rate_hz)
+        self._rate_measured = rate_hz is not None
         self._thread: threading.Thread | None = None
         self._last_sample: OutputSample | None = None
         self._latency_ms: collections.deque[float] = collections.deque(maxlen=600)
+        self._cap_send_ms: collections.deque[float] = collections.deque(maxlen=600)
+        self._done_send_ms: collections.deque[float] = collections.deque(maxlen=600)
+        self._gaps_ms: collections.deque[float] = collections.deque(maxlen=3000)
+        self._last_emit_mono: float | None = None
+        self.clock = OutputClock(rate_hz) if rate_hz is not None else None
+        self.stale_after_s = (stale_after_s if stale_after_s is not None
+                              else max(0.25, 4.0 / self._rate_hz))
+        self._newest: OutputSample | None = None  # clocked: latest ingested sample
+        self._newest_arrival = 0.0
+        self._fresh = False
+        self._faulted = False
+        self._out_seq = 0
+        self.ticks = 0
+        self.held_ticks = 0
+        self.lost_ticks = 0
         if start:
             self.start()
 
@@ -315,6 +440,10 @@ class OutputSet:
     @property
     def config(self) -> OutputConfig:
         return self._config
+
+    @property
+    def clocked(self) -> bool:
+        return self.clock is not None
 
     def start(self) -> None:
         if self._thread is None:
@@ -365,16 +494,27 @@ class OutputSet:
             self._queue.append(sample)
             self.submitted += 1
             self._last_sample = sample
+            self._faulted = False
             self._cond.notify()
 
     def mark_lost(self) -> None:
-        """Send the last pose again flagged LOST (the engine failed or stopped mid-show)."""
+        """The engine failed or stopped mid-show: send the last pose flagged LOST.
+
+        Per record: one more packet now. Clocked: every slot from now on until a new sample
+        arrives or :meth:`close`.
+        """
+        if self.clock is not None:
+            with self._cond:
+                self._faulted = True
+                self._cond.notify()
+            return
         last = self._last_sample
         if last is None:
             return
         period = 1.0 / self._rate_hz if self._rate_hz > 0 else 1.0 / 30.0
         self.submit(replace(last, seq=last.seq + 1, timestamp_s=last.timestamp_s + period,
-                            state="LOST", wall_time_s=time.time(), submit_mono_s=0.0))
+                            state="LOST", wall_time_s=time.time(), submit_mono_s=0.0,
+                            capture_mono_s=0.0, done_mono_s=0.0))
 
     def submit_record(self, record: Any) -> None:
         """Queue an :class:`engine.loop.FrameRecord` (pose trackers; others are skipped)."""
@@ -388,6 +528,8 @@ class OutputSet:
                 T_world_cam=None if T is None else np.array(T, dtype=np.float64),
                 intrinsics=record.frame.intrinsics,
                 wall_time_s=time.time(),
+                capture_mono_s=float(getattr(record, "capture_mono_s", 0.0) or 0.0),
+                done_mono_s=float(getattr(record, "done_mono_s", 0.0) or 0.0),
             )
         )
 
@@ -407,6 +549,7 @@ class OutputSet:
         with self._cond:
             lat = np.fromiter(self._latency_ms, dtype=np.float64)
             p50, p95 = np.percentile(lat, [50, 95]) if lat.size else (np.nan, np.nan)
+            clk = self.clock
             return SenderStats(
                 latency_p50_ms=float(p50),
                 latency_p95_ms=float(p95),
@@ -417,11 +560,23 @@ class OutputSet:
                 encode_errors=self.encode_errors,
                 last_encode_error=self.last_encode_error,
                 targets=tuple(t.stats(now) for t in self._targets),
+                clocked=clk is not None,
+                rate_hz=self._rate_hz,
+                ticks=self.ticks,
+                held_ticks=self.held_ticks,
+                lost_ticks=self.lost_ticks,
+                missed_ticks=0 if clk is None else clk.missed,
+                capture_to_send_ms=_trio(self._cap_send_ms, (50, 95)),
+                done_to_send_ms=_trio(self._done_send_ms, (50, 95)),
+                send_gap_ms=_trio(self._gaps_ms, (50, 99)),
             )
 
     # -- consumer side (sender thread) -----------------------------------------------------
 
     def _run(self) -> None:
+        if self.clock is not None:
+            self._run_clocked()
+            return
         while True:
             with self._cond:
                 while not self._queue and not self._stop:
@@ -443,19 +598,17 @@ class OutputSet:
                     self._busy = False
                     self._cond.notify_all()
 
-    def process(self, sample: OutputSample, cfg: OutputConfig,
-                targets: Sequence[_Target]) -> None:
+    def _ingest(self, sample: OutputSample, cfg: OutputConfig) -> bool:
+        """Put a sample's pose into the delay history; False if nothing can be sent yet."""
         T = sample.T_world_cam
         good = sample.state in ("TRACKING", "DEGRADED") and T is not None
         pose = cfg.studio.studio_pose(T) if good and T is not None else None
         if T is not None and not good and not self._comp.has_pose:
             # Not good before any good frame (initialising): hold the tracker's own pose.
-            self._comp.update(sample.timestamp_s, cfg.studio.studio_pose(T), True)
-        timed = self._comp.update(sample.timestamp_s, pose, good)
-        if timed is None:
-            self.skipped_no_pose += 1
-            return
-        if self._last_t is not None and sample.timestamp_s > self._last_t:
+            self._comp.add(sample.timestamp_s, cfg.studio.studio_pose(T), True)
+        self._comp.add(sample.timestamp_s, pose, good)
+        if self._last_t is not None and sample.timestamp_s > self._last_t \
+                and self.clock is None:
             inst = 1.0 / (sample.timestamp_s - self._last_t)
             if math.isfinite(inst):
                 self._rate_hz = inst if not self._rate_measured else (
@@ -463,24 +616,47 @@ class OutputSet:
                 )
                 self._rate_measured = True
         self._last_t = sample.timestamp_s
+        return self._comp.has_pose
+
+    def process(self, sample: OutputSample, cfg: OutputConfig,
+                targets: Sequence[_Target]) -> None:
+        """Per record: the sample's pose (delayed) to every target."""
+        T = sample.T_world_cam
+        good = sample.state in ("TRACKING", "DEGRADED") and T is not None
+        if not self._ingest(sample, cfg):
+            self.skipped_no_pose += 1
+            return
+        timed = self._comp.value(sample.timestamp_s) if good else self._comp.held()
+        assert timed is not None
+        if sample.state == "LOST" and not sample.capture_mono_s:
+            self.lost_ticks += 1
+        self._emit(timed.pose, sample.state, sample, cfg, targets)
+        if sample.submit_mono_s:
+            self._latency_ms.append((time.monotonic() - sample.submit_mono_s) * 1000.0)
+
+    def _emit(self, pose: StudioPose, state: str, sample: OutputSample, cfg: OutputConfig,
+              targets: Sequence[_Target]) -> None:
+        """Encode once per protocol/encoding and send to every target."""
         freed_bytes: bytes | None = None
         otio_payloads: dict[str, bytes] = {}
+        seq = sample.seq if self.clock is None else self._out_seq
+        self._out_seq += 1
         for t in targets:
             try:
                 if t.spec.protocol == "freed":
                     if freed_bytes is None:
-                        freed_bytes = freed_packet(timed.pose, cfg.freed, sample.intrinsics,
-                                                   cfg.lens)
+                        freed_bytes = freed_packet(pose, cfg.freed, sample.intrinsics, cfg.lens)
                     t.send([freed_bytes])
                 else:
                     enc = t.spec.encoding
                     if enc not in otio_payloads:
                         sample_dict = self._builder.build(
                             otio.SampleInputs(
-                                pose=timed.pose,
-                                status=sample.state,
-                                timestamp_s=sample.wall_time_s or time.time(),
-                                sequence_number=sample.seq,
+                                pose=pose,
+                                status=state,
+                                timestamp_s=(sample.wall_time_s if self.clock is None
+                                             else 0.0) or time.time(),
+                                sequence_number=seq,
                                 sample_rate_hz=self._rate_hz,
                                 intrinsics=sample.intrinsics,
                             )
@@ -491,5 +667,87 @@ class OutputSet:
             except OutputError as exc:
                 self.encode_errors += 1
                 self.last_encode_error = str(exc)
-        if sample.submit_mono_s:
-            self._latency_ms.append((time.monotonic() - sample.submit_mono_s) * 1000.0)
+                t.errors += 1
+                t.last_error = f"{t.spec.name}: {exc}"
+                t.last_error_mono = time.monotonic()
+        now = time.monotonic()
+        self.ticks += 1
+        if self._last_emit_mono is not None:
+            self._gaps_ms.append((now - self._last_emit_mono) * 1000.0)
+        self._last_emit_mono = now
+        if sample.capture_mono_s:
+            self._cap_send_ms.append((now - sample.capture_mono_s) * 1000.0)
+        if sample.done_mono_s:
+            self._done_send_ms.append((now - sample.done_mono_s) * 1000.0)
+
+    def _run_clocked(self) -> None:
+        clock = self.clock
+        assert clock is not None
+        while True:
+            with self._cond:
+                while True:
+                    if self._stop:
+                        return
+                    if self._queue:
+                        break
+                    now = time.monotonic()
+                    wake = clock.wake_at()
+                    if wake is not None and now >= wake:
+                        break
+                    self._cond.wait(None if wake is None else max(0.0, wake - now))
+                samples = list(self._queue)
+                self._queue.clear()
+                self._busy = True
+                cfg = self._config
+                targets = list(self._targets)
+                faulted = self._faulted
+            try:
+                now = time.monotonic()
+                arrived = False
+                for s in samples:
+                    if self._ingest(s, cfg):
+                        self._newest = s
+                        self._newest_arrival = s.submit_mono_s or now
+                        self._fresh = arrived = True
+                        clock.on_arrival(now)
+                    else:
+                        self.skipped_no_pose += 1
+                    self.processed += 1
+                if self._newest is not None and clock.should_fire(now, arrived):
+                    self._tick(now, cfg, targets, faulted)
+                    clock.fired(now)
+            except Exception as exc:  # never let one bad sample kill the sender
+                self.encode_errors += 1
+                self.last_encode_error = f"{type(exc).__name__}: {exc}"
+            finally:
+                with self._cond:
+                    self._busy = False
+                    self._cond.notify_all()
+
+    def _tick(self, now: float, cfg: OutputConfig, targets: Sequence[_Target],
+              faulted: bool) -> None:
+        """One clocked slot: the newest pose, held when not fresh, LOST when stale/faulted."""
+        newest = self._newest
+        assert newest is not None
+        stale = faulted or now - self._newest_arrival > self.stale_after_s
+        good = newest.state in ("TRACKING", "DEGRADED") and newest.T_world_cam is not None
+        if stale or not good:
+            timed = self._comp.held()
+            state = "LOST" if stale else newest.state
+        else:
+            lead = max(0.0, now - self._newest_arrival)
+            timed = self._comp.value(newest.timestamp_s, min(lead, self.clock_period))
+            state = newest.state
+        assert timed is not None
+        if not self._fresh:
+            self.held_ticks += 1
+        if stale:
+            self.lost_ticks += 1
+        # latency is counted once, for the slot that carried the fresh pose
+        carry = newest if self._fresh else replace(newest, capture_mono_s=0.0, done_mono_s=0.0)
+        self._emit(timed.pose, state, carry, cfg, targets)
+        self._fresh = False
+
+    @property
+    def clock_period(self) -> float:
+        return self.clock.period_s if self.clock is not None else 1.0 / 30.0

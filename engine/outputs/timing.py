@@ -90,10 +90,16 @@ class DelayCompensator:
         ``good`` is False while LOST/initialising: the last good pose is held (``held=True``)
         and the history is left alone. Returns None before the first good pose.
         """
-        if not good or pose is None:
+        if not self.add(t_s, pose, good):
             if self._last_good is None:
                 return None
             return TimedPose(self._last_good, held=True)
+        return self.value(t_s)
+
+    def add(self, t_s: float, pose: StudioPose | None, good: bool) -> bool:
+        """Put a tracked pose into the history; False (nothing added) unless ``good``."""
+        if not good or pose is None:
+            return False
         v = pose.as_array()
         if self._v:
             prev = self._v[-1]
@@ -109,9 +115,25 @@ class DelayCompensator:
             self._t.popleft()
             self._v.popleft()
         self._last_good = pose
-        if self.params.is_zero:
-            return TimedPose(pose, held=False)
-        out = self._query(t_s - self.params.as_array())
+        return True
+
+    def held(self) -> TimedPose | None:
+        """The last good pose, held (None before the first good pose)."""
+        return None if self._last_good is None else TimedPose(self._last_good, held=True)
+
+    def value(self, t_s: float, lead_s: float = 0.0) -> TimedPose:
+        """What to send at media time ``t_s + lead_s`` (``t_s``: the newest good frame's).
+
+        Per axis the value at ``t_s + lead_s - delay``; with ``lead_s > 0`` (an output tick
+        after the newest frame) a non-negative delay never reaches past the newest frame
+        (no extrapolation), a negative one predicts as for ``lead_s = 0``.
+        """
+        assert self._last_good is not None
+        if self.params.is_zero or not self._t:
+            return TimedPose(self._last_good, held=False)
+        d = self.params.as_array()
+        tq = np.where(d >= 0, np.minimum(t_s + lead_s - d, self._t[-1]), t_s - d)
+        out = self._query(tq)
         out[3:] = [wrap_deg(a) for a in out[3:]]
         return TimedPose(StudioPose.from_array(out), held=False)
 

@@ -33,6 +33,7 @@ import socket
 from dataclasses import dataclass
 
 from engine.presenter import PresenterError
+from engine.results import TrackerCommand
 
 MESSAGE_TYPE = "studiotrack.presenter.control"
 MESSAGE_VERSION = 1
@@ -77,6 +78,18 @@ class ControlCommand:
             "v_cmd": {"x_px_s": self.v_x_px_s, "y_px_s": self.v_y_px_s,
                       "d_m_s": self.v_d_m_s},
         }, separators=(",", ":"))
+
+
+@dataclass(frozen=True, slots=True)
+class RobotCameraCommand(TrackerCommand):
+    """A robot-camera correction for the control sink: the message and where it goes.
+
+    ``target`` is (host, UDP port) when the tracker's parameters ask for UDP, else None
+    (the correction is still shown and recorded).
+    """
+
+    message: ControlCommand
+    target: tuple[str, int] | None = None
 
 
 def image_error(x: float, y: float, x_star: float, y_star: float) -> tuple[float, float]:

@@ -138,7 +138,7 @@ def motion_likelihood(e_nonmotion: F64 | float, lambda_mot: float) -> F64:
 # ----------------------------------------------------------------------------- integral
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _binned_integral(hsv, n, cell, s_min, v_min, inc, soft):  # type: ignore[no-untyped-def]
     H, W = hsv.shape[0], hsv.shape[1]
     hc = (H + cell - 1) // cell
@@ -208,7 +208,7 @@ def binned_integral(hsv_roi: NDArray[np.uint8], n: int, cell: int = 1,
                             bool(SOFT_DEFAULT if soft is None else soft))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _add_corner(ih, u, v, sign, out):  # type: ignore[no-untyped-def]
     # bilinear interpolation of the integral histogram at grid coordinates (u, v)
     hc = ih.shape[0] - 1
@@ -230,7 +230,7 @@ def _add_corner(ih, u, v, sign, out):  # type: ignore[no-untyped-def]
                    + w10 * ih[iv1, iu, b] + w11 * ih[iv1, iu1, b])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _rect_hist(ih, cell, x0, y0, x1, y1, out):  # type: ignore[no-untyped-def]
     out[:] = 0.0
     _add_corner(ih, x1 / cell, y1 / cell, 1.0, out)
@@ -247,7 +247,7 @@ def rect_histogram(integral: F32, cell: int, xywh: tuple[float, float, float, fl
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _colour_residuals(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h, particles, rel, aspect,
                       sqrt_ref):  # type: ignore[no-untyped-def]
     n_part = particles.shape[0]
@@ -313,7 +313,7 @@ def colour_residuals(integral: F32, cell: int, roi_xywh: tuple[int, int, int, in
                              np.ascontiguousarray(sqrt_ref, dtype=np.float64))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _motion_residuals(S, particles, rel, aspect, scale):  # type: ignore[no-untyped-def]
     img_h = S.shape[0] - 1
     img_w = S.shape[1] - 1

@@ -12,15 +12,34 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.frames import FramePayload, readonly
 from engine.persist import atomic_write_json
 from engine.presenter import PresenterError
 
 F64 = NDArray[np.float64]
+
+
+@dataclass(frozen=True, slots=True)
+class OverheadView(FramePayload):
+    """A second (overhead) view of the same instant, for the floor distance d.
+
+    ``box_xywh`` is the presenter's box in it on the first frame (initialises the second
+    filter); ``floor_calibration`` maps its image to the floor.
+    """
+
+    light: ClassVar[bool] = False
+    color_bgr: NDArray[np.uint8]
+    box_xywh: tuple[float, float, float, float] | None = None
+    floor_calibration: FloorCalibration | None = None
+
+    def __post_init__(self) -> None:
+        readonly(self.color_bgr)
 
 
 @dataclass(frozen=True, slots=True)

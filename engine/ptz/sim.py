@@ -3,16 +3,18 @@
 Like the paper's experiment (sec. 6.2: a red balloon on a Pioneer robot driving a circle,
 period ~46 s, 2-7 m from the camera). The ball is rendered exactly: each pixel's coverage is
 the fraction of 4x4 sub-pixel rays that hit the sphere, so its image is the true conic,
-anti-aliased. The camera moves when the tracker commands it through ``frame.extras
-["ptz_port"]`` (like a camera driver), in whole steps, after a ``latency_frames`` delay;
-``frame.extras["ptz_pan_tilt_deg"]`` is the encoder reading at exposure.
+anti-aliased. The camera moves when its :attr:`PtzSimSource.head_port` is commanded (like a
+camera driver; the pipeline's head sink does it with the tracker's
+:class:`engine.ptz.head.PanTiltCommand`), in whole steps, after a ``latency_frames`` delay.
+Each frame carries :class:`engine.ptz.head.PtzHeadReading` (geometry and encoder reading at
+exposure) and :class:`PtzTargetTruth` (the ball's true motion).
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,9 +22,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
-from engine.frames import Frame
+from engine.frames import Frame, FramePayload
 from engine.params import Params, param
 from engine.ptz.control import StepLimits, quantise
+from engine.ptz.head import PtzHeadReading
 from engine.ptz.kinematics import PtzHead
 from engine.sources.base import Source, SourceSpec, parse_options
 
@@ -83,6 +86,17 @@ class CircleScenario(Params):
     def intrinsics(self) -> Intrinsics:
         return Intrinsics(fx=self.f_px, fy=self.f_px, cx=(self.width - 1) / 2,
                           cy=(self.height - 1) / 2, width=self.width, height=self.height)
+
+
+@dataclass(frozen=True, slots=True)
+class PtzTargetTruth(FramePayload):
+    """The simulated target's true position, velocity, acceleration (world, m, s)."""
+
+    xyz_world: tuple[float, float, float]
+    vel_world: tuple[float, float, float]
+    acc_world: tuple[float, float, float]
+    omega_rad_s: float
+    radius_m: float
 
 
 class PtzPort:
@@ -151,6 +165,7 @@ class PtzSimSource(Source):
         self.nominal_fps = self.sc.fps
         self.name = f"ptz-sim circle r={self.sc.radius_m} m T={self.sc.period_s} s"
         self.port = PtzPort()
+        self.head_port = self.port  # what the pipeline's head sink commands
         self.latency_frames = max(0, int(latency_frames))
         self.limits = StepLimits(self.sc.pan_step_deg, self.sc.tilt_step_deg, max_steps=3)
         rng = np.random.default_rng(self.sc.seed)
@@ -162,6 +177,12 @@ class PtzSimSource(Source):
     @property
     def intrinsics(self) -> Intrinsics:
         return self.sc.intrinsics()
+
+    def sinks(self) -> Sequence[Any]:
+        """The simulated head obeys the tracker's pan-tilt commands (closed loop)."""
+        from engine.ptz.head import HeadCommandSink
+
+        return (HeadCommandSink(self.head_port, "ptz-sim head"),)
 
     def __len__(self) -> int:
         return round(self.sc.duration_s * self.sc.fps)
@@ -203,17 +224,18 @@ class PtzSimSource(Source):
                 intrinsics=cam,
                 gt_T_world_cam=head.T_world_cam(pan, tilt),
                 gt_box_xywh=box,
-                extras={
-                    "ptz_pan_tilt_deg": (pan, tilt),
-                    "ptz_head": head,
-                    "ptz_port": self.port,
-                    "target_xyz_world": p,
-                    "target_vel_world": v,
-                    "target_acc_world": a,
-                    "target_omega_rad_s": sc.omega_rad_s,
-                    "target_radius_m": sc.ball_radius_m,
-                },
+                payloads=(
+                    PtzHeadReading(head=head, pan_deg=pan, tilt_deg=tilt),
+                    PtzTargetTruth(
+                        xyz_world=_tup(p), vel_world=_tup(v), acc_world=_tup(a),
+                        omega_rad_s=sc.omega_rad_s, radius_m=sc.ball_radius_m,
+                    ),
+                ),
             )
+
+
+def _tup(v: F64) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def open_ptz_sim(options: dict[str, str]) -> PtzSimSource:

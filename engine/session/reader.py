@@ -251,7 +251,7 @@ class SessionSource(Source):
                 depth_m=depth,
                 gt_T_world_cam=_gt(rec),
                 gt_box_xywh=_box(rec.get("gt_box_xywh")),
-                extras=dict(rec.get("frame_extras") or {}),
+                depth_timestamp_s=_opt_float(rec.get("depth_timestamp_s")),
             )
 
     def close(self) -> None:
@@ -262,6 +262,10 @@ class SessionSource(Source):
 def _gt(rec: dict[str, Any]) -> np.ndarray | None:
     g = rec.get("gt_T_world_cam")
     return None if g is None else np.asarray(g, dtype=np.float64).reshape(4, 4)
+
+
+def _opt_float(v: Any) -> float | None:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
 
 def _box(b: Any) -> tuple[float, float, float, float] | None:

@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 
 from engine.frames import Frame
+from engine.pipeline import SinkBase, SinkHealth, SinkLevel
+from engine.records import FrameRecord
 from engine.session import FORMAT_NAME, FORMAT_VERSION, RecordingStopped, SessionError
 from engine.session.reader import decode_depth_png
 from engine.sources.base import Source
@@ -133,8 +135,8 @@ class SessionRecorder:
             "outputs": _outputs_summary(outputs_config),
             "frames_recorded": 0,
             "has_depth": False,
-            "notes": "depth PNG units: 1/intrinsics.depth_scale metres; frame extras are "
-            "not recorded",
+            "notes": "depth PNG units: 1/intrinsics.depth_scale metres; source payloads "
+            "(ground truth beyond the pose and box) are not recorded",
         }
         self._write_index()
 
@@ -174,6 +176,7 @@ class SessionRecorder:
             "gt_T_world_cam": None if frame.gt_T_world_cam is None
             else [float(v) for v in frame.gt_T_world_cam.reshape(-1)],
             "gt_box_xywh": to_jsonable(frame.gt_box_xywh),
+            "depth_timestamp_s": to_jsonable(frame.depth_timestamp_s),
             "color_file": False,
             "depth_file": False,
         }
@@ -272,6 +275,9 @@ class _NormalizingSource(Source):
         for f in self.inner.frames():
             yield self.rec.normalize(f)
 
+    def sinks(self) -> Any:
+        return self.inner.sinks()
+
     def close(self) -> None:
         self.inner.close()
 
@@ -280,6 +286,57 @@ def _outputs_summary(cfg: Any) -> Any:
     if cfg is None:
         return None
     return to_jsonable(cfg)
+
+
+class RecorderSink(SinkBase):
+    """Writes every record into ``recorder``'s session folder.
+
+    ``outputs_config`` (an :class:`engine.outputs.sender.OutputConfig`) adds the studio pose
+    and the target names to each record; ``outputs_stats`` gives the sender statistics
+    stored in ``outputs.json`` when the recording is finished.
+    """
+
+    name = "recorder"
+
+    def __init__(self, recorder: SessionRecorder, *, outputs_config: Any = None,
+                 outputs_stats: Callable[[], dict[str, Any] | None] | None = None) -> None:
+        self.recorder = recorder
+        self.outputs_config = outputs_config
+        self.outputs_stats = outputs_stats
+        self.finished = False
+
+    def on_record(self, record: FrameRecord) -> None:
+        info = None
+        cfg = self.outputs_config
+        if cfg is not None:
+            T = record.result.T_world_cam
+            pose = None if T is None else cfg.studio.studio_pose(T).as_array().tolist()
+            info = {"targets": [t.name for t in cfg.targets],
+                    "studio_pose_xyz_m_pan_tilt_roll_deg": pose}
+        self.recorder.write(record, info)
+
+    def close(self) -> None:
+        if self.finished:
+            return
+        self.finished = True
+        stats = self.outputs_stats() if self.outputs_stats is not None else None
+        self.recorder.finish(stats)
+
+    def health(self) -> SinkHealth:
+        rec = self.recorder
+        if rec.stopped:
+            return SinkHealth(self.name, SinkLevel.FAILED, rec.stop_reason,
+                              counters={"frames": rec.frames_written})
+        return SinkHealth(self.name, SinkLevel.OK, str(rec.dir),
+                          counters={"frames": rec.frames_written})
+
+
+def _stats_of(outputs: Any) -> Callable[[], dict[str, Any] | None]:
+    def stats() -> dict[str, Any] | None:
+        st = outputs.stats()
+        return None if st is None else st.to_json_dict()
+
+    return stats
 
 
 def record_session(
@@ -293,28 +350,32 @@ def record_session(
 ) -> Iterator[Any]:
     """Track ``source`` with ``tracker``, recording each frame; yields the FrameRecords.
 
-    Outputs (an :class:`engine.outputs.sender.OutputSet`) receive every record; the studio
-    pose submitted is stored with the record. The recorder is finished on exit, also when a
-    write error stops it (then :class:`RecordingStopped` propagates).
+    Runs the pipeline with a :class:`engine.sinks.recorder.RecorderSink` (and ``outputs``,
+    a :class:`engine.sinks.pose_output.PoseOutputSink`, before it: each record stores the
+    studio pose submitted, ``outputs.json`` the sender statistics). The recorder is finished
+    on exit; a write error stops the run and raises :class:`RecordingStopped`.
     """
     from engine.loop import run_tracking
 
-    names = [t.name for t in outputs.config.targets] if outputs is not None else []
+    sinks: list[Any] = []
+    stats_fn: Callable[[], dict[str, Any] | None] | None = None
+    if outputs is not None:
+        sinks.append(outputs)
+        stats_fn = _stats_of(outputs)
+
+    sink = RecorderSink(recorder, outputs_config=getattr(outputs, "config", None),
+                        outputs_stats=stats_fn)
+    sinks.append(sink)
+    records = run_tracking(recorder.normalizing(source), tracker, sinks=sinks,
+                           should_stop=lambda: should_stop() or recorder.stopped,
+                           max_frames=max_frames)
     try:
-        for rec in run_tracking(recorder.normalizing(source), tracker,
-                                should_stop=should_stop, max_frames=max_frames):
-            info = None
-            if outputs is not None:
-                outputs.submit_record(rec)
-                T = rec.result.T_world_cam
-                pose = None if T is None else outputs.config.studio.studio_pose(T) \
-                    .as_array().tolist()
-                info = {"targets": names, "studio_pose_xyz_m_pan_tilt_roll_deg": pose}
-            recorder.write(rec, info)
+        for rec in records:
+            if recorder.stopped:
+                break
             yield rec
     finally:
-        stats = None
-        if outputs is not None:
-            outputs.flush(2.0)
-            stats = outputs.stats().to_json_dict()
-        recorder.finish(stats)
+        records.close()  # closes the sinks: outputs first, then the recorder (index)
+        sink.close()
+    if recorder.stopped:
+        raise RecordingStopped(recorder._message())

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from engine.camera import Intrinsics
 from engine.errors import SourceError
@@ -39,6 +40,11 @@ class Source(abc.ABC):
     @abc.abstractmethod
     def frames(self) -> Iterator[Frame]:
         """Yield frames in order, starting from the first one each call."""
+
+    def sinks(self) -> Sequence[Any]:
+        """Sinks (:class:`engine.pipeline.Sink`) a pipeline running this source must add to
+        close the source's own loop (e.g. the simulated pan-tilt head obeying the tracker)."""
+        return ()
 
     def __iter__(self) -> Iterator[Frame]:
         return self.frames()

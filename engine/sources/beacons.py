@@ -1,14 +1,16 @@
-"""Range-beacon sources: frames without images whose ``extras`` carry range readings.
+"""Range-beacon sources: frames without images that carry range readings as payloads.
 
-Every frame has ``color_bgr=None`` and ``extras``:
+Every frame has ``color_bgr=None`` and two payloads:
 
-- ``"ranges"``: ``{beacon_id: range_m}`` of this step (missing beacons left out; empty for
-  the heartbeat frames of the live UDP source, which let the engine loop poll its stop flag);
-- ``"gt_xy"``: ``(x, y)`` true camera position or None; ``gt_T_world_cam`` holds it too;
-- ``"beacon_layout"``: ``{beacon_id: (x, y)}`` the operator's layout or None (the tracker
-  uses only its quadrants in SLAM mode, its coordinates in known-beacon mode);
-- ``"gt_beacons"``: the true beacons (simulator only) for evaluation;
-- ``"input_stats"``: skipped-input counters (CSV / UDP), see :class:`engine.beacons.io.InputStats`.
+- :class:`RangeReadings`: ``ranges`` ``{beacon_id: range_m}`` of this step (missing beacons
+  left out; empty for the heartbeat frames of the live UDP source, which let the engine
+  loop poll its stop flag), ``layout`` ``{beacon_id: (x, y)}`` the operator's layout or None
+  (the tracker uses only its quadrants in SLAM mode, its coordinates in known-beacon mode),
+  ``beacon_ids`` (the ids a layout-less live source expects, else None) and
+  ``input_stats`` (skipped-input counters of CSV / UDP, see
+  :class:`engine.beacons.io.InputStats`, else None);
+- :class:`BeaconTruth`: ``gt_xy`` the true camera position or None (``gt_T_world_cam``
+  holds it too) and ``gt_beacons`` the true beacons (simulator only) for evaluation.
 
 Specs (see :func:`open_beacon_source`):
 
@@ -22,6 +24,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
@@ -29,7 +32,7 @@ import numpy as np
 
 from engine.camera import Intrinsics
 from engine.errors import ParamsError, SourceError
-from engine.frames import Frame
+from engine.frames import Frame, FramePayload
 from engine.sources.base import Source, SourceSpec
 
 DEFAULT_UDP_PORT = 9870
@@ -49,6 +52,24 @@ def _frozen_layout(layout: Mapping[str, Sequence[float]] | None) -> Mapping[str,
     return MappingProxyType({k: (float(v[0]), float(v[1])) for k, v in layout.items()})
 
 
+@dataclass(frozen=True, slots=True)
+class RangeReadings(FramePayload):
+    """One time step of range readings (see the module docstring)."""
+
+    ranges: Mapping[str, float]
+    layout: Mapping[str, tuple[float, float]] | None = None
+    beacon_ids: tuple[str, ...] | None = None
+    input_stats: Mapping[str, object] | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class BeaconTruth(FramePayload):
+    """The simulator's truth: camera position and beacon positions (m)."""
+
+    gt_xy: tuple[float, float] | None
+    gt_beacons: Mapping[str, Any] | None = None
+
+
 def _frame(
     index: int,
     t_s: float,
@@ -59,18 +80,18 @@ def _frame(
     stats: dict[str, object] | None = None,
     beacon_ids: tuple[str, ...] | None = None,
 ) -> Frame:
-    extras: dict[str, Any] = {
-        "ranges": MappingProxyType(dict(ranges)),
-        "gt_xy": None if gt_xy is None else (float(gt_xy[0]), float(gt_xy[1])),
-        "beacon_layout": layout,
-        "gt_beacons": gt_beacons,
-    }
-    if stats is not None:
-        extras["input_stats"] = stats
-    if beacon_ids is not None:
-        extras["beacon_ids"] = beacon_ids
+    readings = RangeReadings(
+        ranges=MappingProxyType(dict(ranges)),
+        layout=layout,
+        beacon_ids=beacon_ids,
+        input_stats=None if stats is None else MappingProxyType(dict(stats)),
+    )
+    truth = BeaconTruth(
+        gt_xy=None if gt_xy is None else (float(gt_xy[0]), float(gt_xy[1])),
+        gt_beacons=gt_beacons,
+    )
     return Frame(index=index, timestamp_s=t_s, color_bgr=None, gt_T_world_cam=_T_from_xy(gt_xy),
-                 extras=extras)
+                 payloads=(readings, truth))
 
 
 class BeaconSimSource(Source):

@@ -115,6 +115,7 @@ class CameraSource(Source):
                         color_bgr=image,
                         intrinsics=self._intrinsics,
                         skipped_before=got.skipped,
+                        capture_mono_s=got.arrival_s,
                     )
                     index += 1
             finally:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from engine.camera import Intrinsics
 from engine.errors import SourceError
-from engine.frames import Frame
+from engine.frames import Frame, SourceFiles
 from engine.sources.base import Source, SourceSpec
 from engine.sources.images import read_color_bgr
 
@@ -174,7 +174,7 @@ class OtbSource(Source):
                 timestamp_s=index / self.nominal_fps,
                 color_bgr=image,
                 gt_box_xywh=box,
-                extras={"image_path": str(img_path)},
+                payloads=(SourceFiles(color_path=str(img_path)),),
             )
 
 

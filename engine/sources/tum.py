@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from engine.camera import Intrinsics, load_camera_json, tum_default_for
 from engine.errors import SourceError
-from engine.frames import Frame
+from engine.frames import Frame, SourceFiles
 from engine.geometry import R_from_quat_xyzw, make_T, so3_exp, so3_log
 from engine.sources.base import Source, SourceSpec
 from engine.sources.images import read_color_bgr, read_depth_m
@@ -324,7 +324,7 @@ class TumSource(Source):
                     f"{cam.width}x{cam.height}"
                 )
             depth = None
-            extras: dict[str, object] = {"rgb_path": str(pair.rgb_path)}
+            depth_t: float | None = None
             if pair.depth_path is not None:
                 depth = read_depth_m(pair.depth_path, cam.depth_scale)
                 if depth.shape != (h, w):
@@ -332,8 +332,11 @@ class TumSource(Source):
                         f"{pair.depth_path}: depth image is {depth.shape[1]}x{depth.shape[0]} "
                         f"but colour image {pair.rgb_path.name} is {w}x{h}"
                     )
-                extras["depth_path"] = str(pair.depth_path)
-                extras["depth_timestamp_s"] = pair.depth_timestamp_s
+                depth_t = pair.depth_timestamp_s
+            files = SourceFiles(
+                color_path=str(pair.rgb_path),
+                depth_path=None if pair.depth_path is None else str(pair.depth_path),
+            )
             yield Frame(
                 index=index,
                 timestamp_s=pair.timestamp_s,
@@ -341,7 +344,8 @@ class TumSource(Source):
                 intrinsics=cam,
                 depth_m=depth,
                 gt_T_world_cam=None if gt is None else gt.copy(),
-                extras=extras,
+                payloads=(files,),
+                depth_timestamp_s=depth_t,
             )
 
 

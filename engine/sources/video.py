@@ -18,7 +18,7 @@ import numpy as np
 
 from engine.camera import Intrinsics
 from engine.errors import SourceError
-from engine.frames import Frame
+from engine.frames import Frame, SourceFiles
 from engine.sources.base import Source, SourceSpec
 
 DEFAULT_FPS = 30.0
@@ -95,7 +95,7 @@ class VideoSource(Source):
                     timestamp_s=t_s,
                     color_bgr=np.asarray(image, dtype=np.uint8),
                     intrinsics=self._intrinsics,
-                    extras={"video_path": str(self.path)},
+                    payloads=(SourceFiles(color_path=str(self.path)),),
                 )
                 index += 1
         finally:

@@ -19,6 +19,7 @@ from engine.errors import SourceError
 from engine.frames import Frame
 from engine.geometry import tum_from_T
 from engine.persist import atomic_write_png, atomic_write_text
+from engine.studio.sim import StudioTruth
 
 
 def write_tum_folder(
@@ -55,7 +56,8 @@ def write_tum_folder(
         if frame.gt_T_world_cam is not None:
             row = tum_from_T(frame.gt_T_world_cam)
             gt_lines.append(ts + "".join(f" {v:.9f}" for v in row) + "\n")
-        if "presenter_box_xywh" in frame.extras:
+        truth = frame.payload(StudioTruth)
+        if truth is not None and truth.presenter_in_scene is not None:
             has_box = True
             b = frame.gt_box_xywh
             vals = b if b is not None else (float("nan"),) * 4

@@ -42,7 +42,7 @@ _DYN_DIFFUSE = 0.7
 _KERNEL_LOCK = threading.Lock()
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _hit_box(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     """Entry distance and face of a yawed box (the ray starts outside), or (-1, -1)."""
     c, s = g[6], g[7]
@@ -104,7 +104,7 @@ def _hit_box(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     return tn, face
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _hit_cyl(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     cx, cy, r, z0, z1 = g[0], g[1], g[2], g[3], g[4]
     px = ox - cx
@@ -134,7 +134,7 @@ def _hit_cyl(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     return best, face
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _hit_sph(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     px = ox - g[0]
     py = oy - g[1]
@@ -150,7 +150,7 @@ def _hit_sph(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     return t, 0
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _hit_cap(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     """Ray-capsule intersection (segment a-b, radius r; unit ray direction)."""
     bax, bay, baz = g[3] - g[0], g[4] - g[1], g[5] - g[2]
@@ -189,7 +189,7 @@ def _hit_cap(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
     return -1.0, -1
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _fetch(mat_i, mat_f, atlas, m, u, v, out):  # type: ignore[no-untyped-def]
     """Bilinear texture fetch (or flat albedo) into out[0:3] as floats in [0, 255]; returns
     False for a flat material. ``atlas`` holds texels packed as b | g << 8 | r << 16."""
@@ -242,7 +242,7 @@ def _fetch(mat_i, mat_f, atlas, m, u, v, out):  # type: ignore[no-untyped-def]
     return True
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, nogil=True)
 def _box_uv(lx, ly, lz, g, face):  # type: ignore[no-untyped-def]
     a = face // 2
     if a == 0:
@@ -410,7 +410,7 @@ def _render_kernel(  # type: ignore[no-untyped-def]
                 out_label[v, u] = label
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def label_boxes(labels, n_labels):  # type: ignore[no-untyped-def]
     """Per label: (xmin, ymin, xmax, ymax, pixel count) over the label map (count 0: absent)."""
     out = np.zeros((n_labels, 5), np.int64)

@@ -42,7 +42,7 @@ F32 = NDArray[np.float32]
 
 BOX, CYL, SPH, CAP = 0, 1, 2, 3
 
-#: label map codes (``Frame.extras["labels"]``)
+#: label map codes (``StudioLabels.labels`` of :mod:`engine.studio.sim`)
 LABEL_SET, LABEL_HEAD, LABEL_TORSO, LABEL_LEGS, LABEL_BALL, LABEL_OCCLUDER = 0, 1, 2, 3, 4, 5
 LABEL_NAMES = {
     LABEL_SET: "set",

@@ -1,35 +1,37 @@
 """One studio "shoot": scene + camera path + presenter + ball + sensor -> Frames with truth.
 
 Frames are rendered on demand and are a pure function of (config, index): random access,
-deterministic by seed. ``Frame.extras`` carries the truth:
+deterministic by seed. Each frame carries the truth as two payloads:
 
-- ``labels``: uint8 (H, W) map, 0 set, 1 head, 2 torso (+arms), 3 legs (+shoes), 4 ball,
-  5 occluder
-- ``presenter_in_scene`` (bool), ``presenter_box_xywh`` (box of the presenter's visible pixels,
-  also ``Frame.gt_box_xywh``; None when fewer than 0.1 % of the image shows the presenter),
-  ``presenter_part_boxes`` {head, torso, legs: box or None}, ``presenter_pixels`` (int),
-  ``presenter_pos_world`` (feet centre on the floor, m), ``presenter_head_world``
-- ``ball_pos_world``, ``ball_vel_world``, ``ball_acc_world``, ``ball_radius_m``,
-  ``ball_omega_rad_s``, ``ball_center_px`` (projection of the centre, may be outside),
-  ``ball_box_xywh`` (visible pixels) and ``ball_pixels``  (all only with the ball on)
-- ``depth_exact_m``: the noise-free depth (only when noise or dropouts are on)
-- ``occluder_pos_world``, ``occluder_box_xywh``, ``occluder_pixels``, ``occluder_fraction``
-  (only with the occluder: label 5)
-- ``covered``: True while the lens is covered (dark image, depth 0; pose truth unchanged)
-- ``path`` and ``cycle`` (time / cycle period)
+- :class:`StudioTruth` (small): ``path`` and ``cycle`` (time / cycle period); ``covered``
+  (True while the lens is covered: dark image, depth 0, pose truth unchanged); with the
+  presenter on, ``presenter_in_scene``, ``presenter_box_xywh`` (box of the presenter's
+  visible pixels, also ``Frame.gt_box_xywh``; None when fewer than 0.1 % of the image shows
+  the presenter), ``presenter_part_boxes`` {head, torso, legs: box or None},
+  ``presenter_pixels``, ``presenter_pos_world`` (feet centre on the floor, m),
+  ``presenter_head_world``; with the ball on, ``ball_pos_world``, ``ball_vel_world``,
+  ``ball_acc_world``, ``ball_radius_m``, ``ball_omega_rad_s``, ``ball_center_px``
+  (projection of the centre, may be outside), ``ball_box_xywh`` (visible pixels) and
+  ``ball_pixels``; with the occluder on, ``occluder_pos_world``, ``occluder_box_xywh``,
+  ``occluder_pixels``, ``occluder_fraction``. Fields of parts that are off are None.
+- :class:`StudioLabels` (images, not kept in the run history): ``labels``, a uint8 (H, W)
+  map (0 set, 1 head, 2 torso (+arms), 3 legs (+shoes), 4 ball, 5 occluder) and
+  ``depth_exact_m``, the noise-free depth (only when noise or dropouts are on, else None).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from types import MappingProxyType
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import TUM_DEFAULTS, Intrinsics, project
-from engine.frames import Frame, readonly
+from engine.frames import Frame, FramePayload, readonly
 from engine.geometry import invert
 from engine.studio import sensor
 from engine.studio.ball import BallPath
@@ -49,6 +51,47 @@ from engine.studio.scene import (
 
 F64 = NDArray[np.float64]
 Box = tuple[float, float, float, float]
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class StudioTruth(FramePayload):
+    """The built-in studio's per-frame truth (see the module docstring)."""
+
+    path: str
+    cycle: float
+    covered: bool = False
+    presenter_in_scene: bool | None = None
+    presenter_pixels: int | None = None
+    presenter_box_xywh: Box | None = None
+    presenter_part_boxes: Mapping[str, Box | None] | None = None
+    presenter_pos_world: Vec3 | None = None
+    presenter_head_world: Vec3 | None = None
+    ball_pos_world: Vec3 | None = None
+    ball_vel_world: Vec3 | None = None
+    ball_acc_world: Vec3 | None = None
+    ball_radius_m: float | None = None
+    ball_omega_rad_s: float | None = None
+    ball_center_px: tuple[float, float] | None = None
+    ball_pixels: int | None = None
+    ball_box_xywh: Box | None = None
+    occluder_pos_world: Vec3 | None = None
+    occluder_pixels: int | None = None
+    occluder_fraction: float | None = None
+    occluder_box_xywh: Box | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class StudioLabels(FramePayload):
+    """The studio's label map and noise-free depth (images: not kept in run histories)."""
+
+    light: ClassVar[bool] = False
+    labels: NDArray[np.uint8]
+    depth_exact_m: NDArray[np.float32] | None = None
+
+    def __post_init__(self) -> None:
+        readonly(self.labels)
+        readonly(self.depth_exact_m)
 
 #: Kinect-like camera of the studio at 640x480 (TUM's default ROS calibration)
 KINECT_FX = 525.0
@@ -127,7 +170,7 @@ class Studio:
             if T_world_cam.shape != (4, 4):
                 raise ValueError(f"T_world_cam must be 4x4, got {T_world_cam.shape}")
         parts: list[Prims] = []
-        extras: dict[str, Any] = {"path": cfg.path.kind, "cycle": t_s / cfg.path.period_s}
+        truth: dict[str, Any] = {"path": cfg.path.kind, "cycle": t_s / cfg.path.period_s}
         keypoints: dict[str, F64] | None = None
         state = cfg.presenter.state(index) if cfg.presenter is not None else None
         if state is not None:
@@ -140,16 +183,16 @@ class Studio:
         if cfg.occluder:
             occ_centre = occluder_centre(t_s)
             parts.append(occluder_prims(occ_centre, self.scene))
-            extras["occluder_pos_world"] = _tup(occ_centre)
+            truth["occluder_pos_world"] = _tup(occ_centre)
         out = self.renderer.render(T_world_cam, concat_prims(*parts) if parts else None)
         color, depth, labels = out.color_bgr, out.depth_m, out.labels
 
         boxes = label_boxes(labels, 6)
         if cfg.occluder:
             n_occ = int(boxes[LABEL_OCCLUDER, 4])
-            extras["occluder_pixels"] = n_occ
-            extras["occluder_fraction"] = n_occ / float(cfg.width * cfg.height)
-            extras["occluder_box_xywh"] = _xywh(*boxes[LABEL_OCCLUDER, :4]) if n_occ else None
+            truth["occluder_pixels"] = n_occ
+            truth["occluder_fraction"] = n_occ / float(cfg.width * cfg.height)
+            truth["occluder_box_xywh"] = _xywh(*boxes[LABEL_OCCLUDER, :4]) if n_occ else None
         min_px = max(1, round(1e-3 * cfg.width * cfg.height))
         presenter_box: Box | None = None
         if cfg.presenter is not None:
@@ -160,27 +203,27 @@ class Studio:
                 presenter_box = _xywh(
                     vis[:, 0].min(), vis[:, 1].min(), vis[:, 2].max(), vis[:, 3].max()
                 )
-            extras["presenter_in_scene"] = state is not None
-            extras["presenter_pixels"] = n_px
-            extras["presenter_box_xywh"] = presenter_box
-            extras["presenter_part_boxes"] = {
+            truth["presenter_in_scene"] = state is not None
+            truth["presenter_pixels"] = n_px
+            truth["presenter_box_xywh"] = presenter_box
+            truth["presenter_part_boxes"] = MappingProxyType({
                 name: (_xywh(*boxes[k, :4]) if boxes[k, 4] > 0 else None)
                 for name, k in (("head", LABEL_HEAD), ("torso", LABEL_TORSO), ("legs", LABEL_LEGS))
-            }
-            extras["presenter_pos_world"] = None if keypoints is None else _tup(keypoints["feet"])
-            extras["presenter_head_world"] = None if keypoints is None else _tup(keypoints["head"])
+            })
+            truth["presenter_pos_world"] = None if keypoints is None else _tup(keypoints["feet"])
+            truth["presenter_head_world"] = None if keypoints is None else _tup(keypoints["head"])
         if ball_truth is not None and cfg.ball is not None:
             pos, vel, acc = ball_truth
             p_cam = (invert(T_world_cam) @ np.append(pos, 1.0))[:3]
             uv = project(self.intrinsics, p_cam[None, :])[0]
-            extras["ball_pos_world"] = _tup(pos)
-            extras["ball_vel_world"] = _tup(vel)
-            extras["ball_acc_world"] = _tup(acc)
-            extras["ball_radius_m"] = cfg.ball.ball_radius_m
-            extras["ball_omega_rad_s"] = cfg.ball.omega_rad_s
-            extras["ball_center_px"] = (float(uv[0]), float(uv[1]))
-            extras["ball_pixels"] = int(boxes[LABEL_BALL, 4])
-            extras["ball_box_xywh"] = (
+            truth["ball_pos_world"] = _tup(pos)
+            truth["ball_vel_world"] = _tup(vel)
+            truth["ball_acc_world"] = _tup(acc)
+            truth["ball_radius_m"] = cfg.ball.ball_radius_m
+            truth["ball_omega_rad_s"] = cfg.ball.omega_rad_s
+            truth["ball_center_px"] = (float(uv[0]), float(uv[1]))
+            truth["ball_pixels"] = int(boxes[LABEL_BALL, 4])
+            truth["ball_box_xywh"] = (
                 _xywh(*boxes[LABEL_BALL, :4]) if boxes[LABEL_BALL, 4] > 0 else None
             )
 
@@ -188,7 +231,7 @@ class Studio:
             rng = np.random.default_rng([cfg.seed, index, 11])
             exact = depth
             if cfg.depth_noise > 0 or cfg.dropouts > 0:
-                extras["depth_exact_m"] = readonly(exact)
+                truth["depth_exact_m"] = readonly(exact)
             if cfg.depth_noise > 0:
                 depth = sensor.add_depth_noise(depth, cfg.depth_noise, rng)
             if cfg.dropouts > 0:
@@ -196,7 +239,7 @@ class Studio:
             if cfg.color_noise > 0:
                 color = sensor.add_color_noise(color, cfg.color_noise, rng)
         covered = cfg.cover_start <= index < cfg.cover_start + cfg.cover_frames
-        extras["covered"] = covered
+        truth["covered"] = covered
         if covered:
             # lens cap: a dark, slightly noisy image and no depth; the truth stays valid
             rng_c = np.random.default_rng([cfg.seed, index, 13])
@@ -206,7 +249,9 @@ class Studio:
             color = sensor.lens_blur(color, cfg.blur_px)
         if self._vignette is not None:
             color = np.clip(color * self._vignette + 0.5, 0, 255).astype(np.uint8)
-        extras["labels"] = readonly(labels)
+        truth["labels"] = readonly(labels)
+        exact_depth = truth.pop("depth_exact_m", None)
+        labels_payload = StudioLabels(labels=truth.pop("labels"), depth_exact_m=exact_depth)
         return Frame(
             index=index,
             timestamp_s=t_s,
@@ -215,7 +260,7 @@ class Studio:
             depth_m=depth,
             gt_T_world_cam=T_world_cam,
             gt_box_xywh=presenter_box,
-            extras=extras,
+            payloads=(StudioTruth(**truth), labels_payload),
         )
 
 

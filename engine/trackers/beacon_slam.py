@@ -1,17 +1,18 @@
 """``beacon-slam``: 2D camera tracking from ranges to studio beacons (Yang et al. 2007).
 
 Consumes frames of the beacon sources (:mod:`engine.sources.beacons`): no image, the readings
-in ``frame.extras["ranges"]``. The beacons are unknown at start (SLAM, particles of eq. 9
-with Map Adjustment, eq. 12) or surveyed (``known_beacons``: localisation only). The output
-is ``T_world_cam`` with the position (x, y, 0) and identity rotation; ``extras`` carries the
-particle cloud, the beacon map with covariances and what was rejected.
+in the frame's :class:`engine.sources.beacons.RangeReadings`. The beacons are unknown at
+start (SLAM, particles of eq. 9 with Map Adjustment, eq. 12) or surveyed (``known_beacons``:
+localisation only). The output is ``T_world_cam`` with the position (x, y, 0) and identity
+rotation; ``details`` (:class:`BeaconDetails`) carries the particle cloud, the beacon map
+with covariances and what was rejected.
 
-The beacon ids come from the layout in ``frame.extras["beacon_layout"]`` (else
-``extras["beacon_ids"]``, else the first frame's readings); readings of other ids are
-ignored and counted (``extras["ignored_ids"]``). Frames without readings (live heartbeats)
-do not step the filter. A change of ``known_beacons``/``quadrant_init``/``ring_hypotheses``
-applies when a beacon is next initialised (reset); every other parameter (particle count,
-sigmas, p, ``ring_commit``) at the next step.
+The beacon ids come from the readings' ``layout`` (else their ``beacon_ids``, else the
+first frame's readings); readings of other ids are ignored and counted
+(``details.ignored_ids``). Frames without readings (live heartbeats) do not step the filter.
+A change of ``known_beacons``/``quadrant_init``/``ring_hypotheses`` applies when a beacon is
+next initialised (reset); every other parameter (particle count, sigmas, p, ``ring_commit``)
+at the next step.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import argparse
 import dataclasses
 import math
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -27,7 +30,8 @@ import numpy as np
 from engine.beacons.filter import BeaconSlamFilter
 from engine.beacons.params import BeaconFilterParams
 from engine.frames import Frame
-from engine.trackers.base import TrackerSpec, TrackResult, TrackState
+from engine.sources.beacons import RangeReadings
+from engine.trackers.base import TrackDetails, TrackerSpec, TrackResult, TrackState
 
 #: camera spread (sqrt of the covariance trace) above which the state is DEGRADED
 DEGRADED_SPREAD_M = 2.0
@@ -37,6 +41,25 @@ def _ro(a: np.ndarray) -> np.ndarray:
     a = np.array(a, copy=True)
     a.flags.writeable = False
     return a
+
+
+@dataclass(frozen=True, slots=True)
+class BeaconDetails(TrackDetails):
+    """One filter step: camera estimate, particle cloud, beacon map, what was rejected."""
+
+    step: int
+    cam_xy: tuple[float, float]
+    cam_cov: np.ndarray  # (2, 2)
+    particles_xy: np.ndarray  # (M, 2)
+    beacon_ids: tuple[str, ...]
+    beacons_xy: np.ndarray  # (B, 2), NaN before a beacon is initialised
+    beacons_cov: np.ndarray  # (B, 2, 2)
+    ess: float
+    n_particles: int
+    used_ids: tuple[str, ...]
+    outlier_ids: tuple[str, ...]
+    ignored_ids: tuple[str, ...]
+    input_stats: Mapping[str, object] | None = None
 
 
 class BeaconSlamTracker:
@@ -62,25 +85,27 @@ class BeaconSlamTracker:
         self._last: TrackResult | None = None
         self._ignored: set[str] = set()
 
-    def _make_filter(self, frame: Frame, ranges: dict[str, float]) -> BeaconSlamFilter:
-        layout = frame.extras.get("beacon_layout")
+    def _make_filter(self, readings: RangeReadings, ranges: dict[str, float]
+                     ) -> BeaconSlamFilter:
+        layout = readings.layout
         if layout:
             ids = list(layout)
-        elif frame.extras.get("beacon_ids"):
-            ids = list(frame.extras["beacon_ids"])
+        elif readings.beacon_ids:
+            ids = list(readings.beacon_ids)
         else:
             ids = sorted(ranges)
         return BeaconSlamFilter(ids, self._params, layout_xy=layout or None)
 
     def track(self, frame: Frame) -> TrackResult:
         t0 = time.perf_counter()
-        ranges = dict(frame.extras.get("ranges") or {})
-        if not ranges:
+        readings = frame.payload(RangeReadings)
+        ranges = dict(readings.ranges) if readings is not None else {}
+        if not ranges or readings is None:
             if self._last is not None:
                 return self._last
-            return TrackResult(state=TrackState.INITIALIZING, extras={"reason": "no readings yet"})
+            return TrackResult(state=TrackState.INITIALIZING, message="no readings yet")
         if self.filter is None:
-            self.filter = self._make_filter(frame, ranges)
+            self.filter = self._make_filter(readings, ranges)
         f = self.filter
         self._ignored.update(k for k in ranges if k not in f.ids)
         r = np.array([ranges.get(i, math.nan) for i in f.ids], dtype=np.float64)
@@ -97,29 +122,30 @@ class BeaconSlamTracker:
         T = np.eye(4)
         T[0, 3], T[1, 3] = float(est.cam_xy[0]), float(est.cam_xy[1])
         n_read = int(np.count_nonzero(np.isfinite(r)))
-        extras: dict[str, Any] = {
-            "step": est.step,
-            "cam_xy": (float(est.cam_xy[0]), float(est.cam_xy[1])),
-            "cam_cov": est.cam_cov,
-            "particles_xy": _ro(f.cam),
-            "beacon_ids": f.ids,
-            "beacons_xy": est.beacons_xy,
-            "beacons_cov": est.beacons_cov,
-            "ess": est.ess,
-            "n_particles": f.n_particles,
-            "used_ids": tuple(i for i, u in zip(f.ids, est.used, strict=True) if u),
-            "outlier_ids": tuple(i for i, o in zip(f.ids, est.outliers, strict=True) if o),
-            "ignored_ids": tuple(sorted(self._ignored)),
-        }
-        if "input_stats" in frame.extras:
-            extras["input_stats"] = frame.extras["input_stats"]
+        details = BeaconDetails(
+            step=est.step,
+            cam_xy=(float(est.cam_xy[0]), float(est.cam_xy[1])),
+            cam_cov=_ro(est.cam_cov),
+            particles_xy=_ro(f.cam),
+            beacon_ids=tuple(f.ids),
+            beacons_xy=_ro(est.beacons_xy),
+            beacons_cov=_ro(est.beacons_cov),
+            ess=float(est.ess),
+            n_particles=int(f.n_particles),
+            used_ids=tuple(i for i, u in zip(f.ids, est.used, strict=True) if u),
+            outlier_ids=tuple(i for i, o in zip(f.ids, est.outliers, strict=True) if o),
+            ignored_ids=tuple(sorted(self._ignored)),
+            input_stats=readings.input_stats,
+        )
         res = TrackResult(
             state=state,
             T_world_cam=T,
             residual=None if math.isnan(est.residual_rms_m) else est.residual_rms_m,
             inlier_fraction=(n_used / n_read) if n_read and est.step > 0 else None,
             timings_ms={"filter": (t1 - t0) * 1000.0},
-            extras=extras,
+            details=details,
+            message=(f"{n_used} beacon(s) in use, camera spread {spread:.2f} m" if state is
+                     TrackState.DEGRADED else ""),
         )
         self._last = res
         return res

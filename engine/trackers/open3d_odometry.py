@@ -128,7 +128,7 @@ class Open3DOdometryTracker:
             timings["total"] = (time.perf_counter() - t0) * 1e3
             return TrackResult(
                 TrackState.LOST, self._T_world_prev.copy(), timings_ms=timings,
-                extras={"lost_reason": "odometry failed" if not ok else "jump"},
+                message="odometry failed" if not ok else "jump",
             )
         self._T_world_prev = self._T_world_prev @ T
         self._prev = cur

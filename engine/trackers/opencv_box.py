@@ -9,8 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from engine.errors import ParamsError, TrackerError
 from engine.frames import Frame
 from engine.params import Params, param
@@ -67,8 +65,7 @@ class OpenCVBoxTracker:
         if self._cv is None:
             box = self._params.init_box_xywh or frame.gt_box_xywh
             if box is None:
-                return TrackResult(state=TrackState.INITIALIZING,
-                                   extras={"message": "no initial box"})
+                return TrackResult(state=TrackState.INITIALIZING, message="no initial box")
             H, W = img.shape[:2]
             x, y, w, h = (float(v) for v in box)
             x0, y0 = max(round(x), 0), max(round(y), 0)
@@ -87,7 +84,8 @@ class OpenCVBoxTracker:
         assert self._box is not None
         return TrackResult(state=state, box_xywh=self._box,
                            overlay=Overlay(boxes_xywh=(self._box,), box_labels=(self.kind,)),
-                           extras={"score": np.nan})
+                           message="" if state is TrackState.TRACKING else
+                           f"OpenCV {self.kind.upper()} reports a failure")
 
 
 def _factory(kind: str) -> Any:

@@ -30,7 +30,7 @@ from engine.errors import ParamsError
 from engine.frames import Frame, readonly
 from engine.geometry import invert
 from engine.params import Params, param
-from engine.trackers.base import TrackerSpec, TrackResult, TrackState
+from engine.trackers.base import TrackDetails, TrackerSpec, TrackResult, TrackState
 
 F64 = NDArray[np.float64]
 
@@ -72,6 +72,14 @@ class OpenCVOdometryParams(Params):
             raise ParamsError(
                 f"max_depth_m ({self.max_depth_m}) must exceed min_depth_m ({self.min_depth_m})"
             )
+
+
+@dataclass(frozen=True, slots=True)
+class OdometryDetails(TrackDetails):
+    """Frame-to-frame odometry: the relative motion found (``T_cur_ref``, p_cur = T p_ref)."""
+
+    T_cur_ref: NDArray[np.float64] | None
+    initialised: bool = False
 
 
 class OpenCVOdometryTracker:
@@ -161,7 +169,7 @@ class OpenCVOdometryTracker:
             state=state,
             T_world_cam=None if self._T_world_cam is None else self._T_world_cam.copy(),
             timings_ms=timings,
-            extras={"message": msg},
+            message=msg,
         )
 
     def track(self, frame: Frame) -> TrackResult:
@@ -214,7 +222,7 @@ class OpenCVOdometryTracker:
                 state=TrackState.TRACKING,
                 T_world_cam=start.copy(),
                 timings_ms=timings,
-                extras={"initialised": True},
+                details=OdometryDetails(T_cur_ref=None, initialised=True),
             )
 
         ok, Rt = self._odometry.compute(self._ref, cur)
@@ -241,7 +249,7 @@ class OpenCVOdometryTracker:
             state=TrackState.TRACKING,
             T_world_cam=T_world_cur.copy(),
             timings_ms=timings,
-            extras={"T_cur_ref": readonly(Rt)},
+            details=OdometryDetails(T_cur_ref=readonly(Rt), initialised=False),
         )
 
     def _set_reference(

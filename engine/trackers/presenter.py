@@ -5,27 +5,53 @@ or, by default, from the first frame's ground-truth box (``Frame.gt_box_xywh``) 
 ``auto_patches`` horizontal patches. ``box_xywh`` is the particle mean of eq. (6) (what the
 OTB metrics score) - for a full-body model with the width and centre x measured by
 ``engine.presenter.extent`` (``fit_width``); the jitter-filtered position drives the
-cross-hair and the control message (``extras['filtered_xyh']``). While LOST the box holds
-the last good estimate.
+cross-hair and the robot-camera correction (``details.filtered_xyh``). While LOST the box
+holds the last good estimate. Each frame's correction is returned as a
+:class:`engine.presenter.control.RobotCameraCommand` (its ``target`` is the UDP destination
+when ``control_udp`` is on); the pipeline's robot-control sink sends it - the tracker does no
+I/O. ``details`` is a :class:`PresenterDetails`.
 
-Optional second view: a frame whose ``extras`` carries ``overhead_bgr`` and ``overhead_box_xywh``
-(first frame) is tracked by a second filter; with a floor calibration
-(``extras['floor_calibration']``, an ``engine.presenter.twoview.FloorCalibration``) the
-output adds the floor distance d.
+Optional second view: a frame with an :class:`engine.presenter.twoview.OverheadView`
+payload (its box on the first frame) is tracked by a second filter; with the payload's floor
+calibration the output adds the floor distance d.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from engine.errors import TrackerError
 from engine.frames import Frame
+from engine.presenter.control import ControlCommand, RobotCameraCommand
 from engine.presenter.params import PresenterParams
-from engine.trackers.base import Overlay, TrackerSpec, TrackResult, TrackState
+from engine.presenter.twoview import OverheadView
+from engine.trackers.base import Overlay, TrackDetails, TrackerSpec, TrackResult, TrackState
+
+XYH = tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class PresenterDetails(TrackDetails):
+    """One frame of the presenter filter: likelihoods (eq. 3-5), positions, control."""
+
+    raw_xyh: XYH  # particle mean, eq. (6)
+    filtered_xyh: XYH  # jitter-filtered (drives the cross-hair and the control)
+    p_col: float  # colour likelihood of the best particle
+    p_ref: float  # reference likelihood (model time)
+    p_min: float  # loss threshold
+    n_particles: int
+    lost_frames: int
+    lag_frames: float
+    lag_s: float
+    d_m: float | None  # floor distance from the overhead view
+    control: ControlCommand
+    model_warnings: tuple[str, ...] = ()
+    overhead_xyh: XYH | None = None
 
 
 def _as_bgr(frame: Frame) -> np.ndarray:
@@ -47,7 +73,6 @@ class PresenterTracker:
         self._view: Any = None
         self._overhead: Any = None
         self._control: Any = None
-        self._sender: Any = None
         self.model: Any = None
         self._t_prev: float | None = None
 
@@ -76,6 +101,12 @@ class PresenterTracker:
         if self._control is not None:
             self._control.reset()
 
+    def sinks(self) -> tuple[Any, ...]:
+        """The sink that sends this tracker's robot-camera corrections (UDP when asked)."""
+        from engine.sinks.robot import RobotControlSink
+
+        return (RobotControlSink(),)
+
     def use_model(self, model: Any) -> None:
         """Track this (already built) PatchModel from the next frame on (GUI set-up)."""
         self.reset()
@@ -97,8 +128,12 @@ class PresenterTracker:
         if model is None:
             if frame.gt_box_xywh is None:
                 return False
-            parts = frame.extras.get("presenter_part_boxes") or {}
-            labels = frame.extras.get("labels")
+            from engine.studio.sim import StudioLabels, StudioTruth
+
+            truth = frame.payload(StudioTruth)
+            label_map = frame.payload(StudioLabels)
+            parts = dict(truth.presenter_part_boxes or {}) if truth is not None else {}
+            labels = label_map.labels if label_map is not None else None
             if p.use_part_boxes and labels is not None and parts:
                 from engine.studio.scene import LABEL_HEAD, LABEL_LEGS, LABEL_TORSO
 
@@ -112,24 +147,24 @@ class PresenterTracker:
                 model = model_from_box(bgr, frame.gt_box_xywh, p.auto_patches, p.n_bins,
                                        grey_world=p.grey_world)
         self.model = model
-        fps = float(frame.extras.get("fps", 0.0) or 30.0)
+        fps = 30.0  # until the timestamps give the rate (track())
         self._view = ViewTracker(model, p, fps)
-        over = frame.extras.get("overhead_bgr")
-        obox = frame.extras.get("overhead_box_xywh")
-        if over is not None and obox is not None:
-            omodel = model_from_box(over, obox, 2, p.n_bins)
+        over = frame.payload(OverheadView)
+        if over is not None and over.box_xywh is not None:
+            omodel = model_from_box(over.color_bgr, over.box_xywh, 2, p.n_bins)
             self._overhead = ViewTracker(omodel, p, fps)
         return True
 
     def track(self, frame: Frame) -> TrackResult:
-        from engine.presenter.control import ControlLimits, ControlLoop, UdpControlSender
+        from engine.presenter.control import ControlLimits, ControlLoop
         from engine.presenter.twoview import fuse
 
         bgr = _as_bgr(frame)
         if self._view is None and not self._init(frame, bgr):
-            return TrackResult(state=TrackState.INITIALIZING, extras={
-                "message": "no presenter model: set up a model or use a source with a "
-                           "ground-truth box on its first frame"})
+            return TrackResult(
+                state=TrackState.INITIALIZING,
+                message="no presenter model: set up a model or use a source with a "
+                        "ground-truth box on its first frame")
         p = self._params
         if self._t_prev is not None and frame.timestamp_s > self._t_prev:
             # the jitter filter's frame rate from the timestamps (unless the operator set one)
@@ -138,10 +173,10 @@ class PresenterTracker:
         out = self._view.step(bgr)
         d_m = None
         over_out = None
-        if self._overhead is not None and frame.extras.get("overhead_bgr") is not None:
-            over_out = self._overhead.step(frame.extras["overhead_bgr"])
-            calib = frame.extras.get("floor_calibration")
-            _, _, d_m = fuse(0.0, 0.0, over_out.filtered_xyh[:2], calib)
+        over = frame.payload(OverheadView)
+        if self._overhead is not None and over is not None:
+            over_out = self._overhead.step(over.color_bgr)
+            _, _, d_m = fuse(0.0, 0.0, over_out.filtered_xyh[:2], over.floor_calibration)
         H, W = bgr.shape[:2]
         fx, fy, _fh = out.filtered_xyh
         if self._control is None:
@@ -151,11 +186,8 @@ class PresenterTracker:
             target_xy_px=(p.target_x_frac * W, p.target_y_frac * H), target_d_m=p.target_d_m,
             limits=ControlLimits(p.control_gain, p.max_speed_px_s, p.max_accel_px_s2,
                                  p.max_speed_m_s, p.max_accel_m_s2))
-        if p.control_udp:
-            if self._sender is None:
-                self._sender = UdpControlSender(p.control_host, p.control_port)
-            self._sender.retarget(p.control_host, p.control_port)
-            self._sender.send(cmd)
+        robot = RobotCameraCommand(
+            cmd, (p.control_host, int(p.control_port)) if p.control_udp else None)
         x, y, h = out.raw_xyh
         boxes = self._view.model.boxes_at(x, y, h)
         w = boxes[0][2]
@@ -168,17 +200,14 @@ class PresenterTracker:
             crosshair_uv=(fx, fy),
         )
         state = TrackState.TRACKING if out.state == "TRACKING" else TrackState.LOST
-        extras: dict[str, Any] = {
-            "raw_xyh": out.raw_xyh, "filtered_xyh": out.filtered_xyh,
-            "p_col": out.p_col, "p_ref": out.p_ref, "p_min": out.p_min,
-            "n_particles": out.n_particles, "lost_frames": out.lost_frames,
-            "lag_frames": self._view.lag_frames,
-            "lag_s": self._view.jitter.lag_s,
-            "d_m": d_m, "control": cmd,
-            "model_warnings": self._view.model.warnings,
-        }
-        if over_out is not None:
-            extras["overhead_xyh"] = over_out.filtered_xyh
+        details = PresenterDetails(
+            raw_xyh=_xyh(out.raw_xyh), filtered_xyh=_xyh(out.filtered_xyh),
+            p_col=float(out.p_col), p_ref=float(out.p_ref), p_min=float(out.p_min),
+            n_particles=int(out.n_particles), lost_frames=int(out.lost_frames),
+            lag_frames=float(self._view.lag_frames), lag_s=float(self._view.jitter.lag_s),
+            d_m=d_m, control=cmd, model_warnings=tuple(self._view.model.warnings),
+            overhead_xyh=None if over_out is None else _xyh(over_out.filtered_xyh),
+        )
         bx, bw = out.box_cx_w if out.box_cx_w is not None else (x, w)
         return TrackResult(
             state=state,
@@ -186,8 +215,16 @@ class PresenterTracker:
             residual=float(-np.log(max(out.p_col, 1e-300))),
             timings_ms=out.timings_ms,
             overlay=overlay,
-            extras=extras,
+            details=details,
+            commands=(robot,),
+            message="" if state is TrackState.TRACKING else
+            f"lost for {out.lost_frames} frames: colour likelihood {out.p_col:.3g}, "
+            f"Pmin {out.p_min:.3g}",
         )
+
+
+def _xyh(v: Any) -> XYH:
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _add_cli(parser: argparse.ArgumentParser) -> None:

@@ -2,15 +2,16 @@
 
 Per frame: colour segmentation + snake -> (u, v, d) (sec. 4), MMAE over constant-turn EKFs
 (sec. 5) -> target position, velocity, acceleration, covariance, model probabilities and
-turn rate; then the pan/tilt decision (sec. 6.1) sent to ``frame.extras["ptz_port"]`` when
-the source offers one. The head geometry comes from ``frame.extras["ptz_head"]`` (a
-:class:`engine.ptz.kinematics.PtzHead`) or, without one, a fixed camera at the world origin
-with ``frame.intrinsics``; the motor angles from ``frame.extras["ptz_pan_tilt_deg"]``
-(encoder) or the last command.
+turn rate; then the pan/tilt decision (sec. 6.1), returned as a
+:class:`engine.ptz.head.PanTiltCommand` (the pipeline's head sink moves the head). The head
+geometry and motor angles come from the frame's :class:`engine.ptz.head.PtzHeadReading`
+(encoder) or, without one, a fixed camera at the world origin with ``frame.intrinsics`` at
+the last commanded angles.
 
 The result's ``T_world_cam`` is the camera pose (from the head kinematics), ``box_xywh`` the
-target's box; ``extras`` hold the estimate (``target_xyz``, ``target_vel``, ``target_acc``,
-``target_cov``, ``model_probs``, ``omega_rad_s``, ``predicted_uv``, ``measurement``).
+target's box; ``details`` (:class:`PtzDetails`) hold the estimate (``target_xyz``,
+``target_vel``, ``target_acc``, ``target_cov``, ``model_probs``, ``omega_rad_s``,
+``predicted_uv``, ``measurement``).
 """
 
 from __future__ import annotations
@@ -22,12 +23,16 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from engine.errors import ParamsError
-from engine.frames import Frame
+from engine.frames import Frame, readonly
 from engine.params import Params, Preset, param
+from engine.ptz.head import PanTiltCommand, PtzHeadReading
 from engine.ptz.sim import CircleScenario
-from engine.trackers.base import Overlay, TrackerSpec, TrackResult, TrackState
+from engine.trackers.base import Overlay, TrackDetails, TrackerSpec, TrackResult, TrackState
+
+F64 = NDArray[np.float64]
 
 _SIM = CircleScenario()
 PAPER_OMEGAS = tuple(2.0 * math.pi / 50.0 * j for j in range(4))
@@ -97,6 +102,33 @@ class PtzParams(Params):
         return tuple(float(w) for w in np.linspace(0.0, self.omega_max_rad_s, self.n_models))
 
 
+@dataclass(frozen=True, slots=True)
+class PtzDetails(TrackDetails):
+    """One frame of the pan-tilt tracker (sec. 4-6); estimate fields None before init."""
+
+    pan_tilt_deg: tuple[float, float]
+    resets: int
+    reinitialised: bool
+    predicted_uv: tuple[float, float] | None = None
+    measurement: tuple[float, float, float] | None = None  # u, v (px), d (m)
+    snake_iterations: int | None = None
+    radius_px: float | None = None
+    target_xyz: F64 | None = None  # world, m
+    target_vel: F64 | None = None
+    target_acc: F64 | None = None
+    target_cov: F64 | None = None  # (9, 9), state order x vx ax y vy ay z vz az
+    model_probs: F64 | None = None
+    omegas: F64 | None = None
+    omega_rad_s: float | None = None
+    mean_nis: float | None = None
+    command_deg: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("target_xyz", "target_vel", "target_acc", "target_cov", "model_probs",
+                     "omegas"):
+            readonly(getattr(self, name))
+
+
 class PtzTracker:
     name = "ptz"
 
@@ -129,9 +161,9 @@ class PtzTracker:
     def _head(self, frame: Frame) -> Any:
         from engine.ptz.kinematics import PtzHead
 
-        head = frame.extras.get("ptz_head")
-        if head is not None:
-            return head
+        reading = frame.payload(PtzHeadReading)
+        if reading is not None and reading.head is not None:
+            return reading.head
         cam = frame.intrinsics
         K = cam.K if cam is not None else np.array([[525.0, 0, 319.5], [0, 525.0, 239.5],
                                                     [0, 0, 1.0]])
@@ -153,7 +185,9 @@ class PtzTracker:
             return TrackResult(state=TrackState.LOST)
         t0 = time.perf_counter()
         head = self._head(frame)
-        pan, tilt = frame.extras.get("ptz_pan_tilt_deg", self.last_cmd or (0.0, 0.0))
+        reading = frame.payload(PtzHeadReading)
+        pan, tilt = ((reading.pan_deg, reading.tilt_deg) if reading is not None
+                     else self.last_cmd or (0.0, 0.0))
         P_cam = head.P(pan, tilt)
         T_wc = head.T_world_cam(pan, tilt)
         c_world = T_wc[:3, 3]
@@ -203,18 +237,17 @@ class PtzTracker:
                 self._init_filter(z, P_cam, T_wc)
                 state = TrackState.RELOCALIZING
         t3 = time.perf_counter()
-        extras: dict[str, Any] = {"ptz_pan_tilt_deg": (pan, tilt), "resets": self.resets,
-                                  "reinitialised": reinit, "predicted_uv": pred_uv}
         polylines: list[np.ndarray] = []
+        det: dict[str, Any] = {}
         if meas is not None:
-            extras["measurement"] = (meas.u, meas.v, meas.d_m)
-            extras["snake_iterations"] = meas.snake_iterations
-            extras["radius_px"] = meas.radius_px
+            det.update(measurement=(meas.u, meas.v, meas.d_m),
+                       snake_iterations=meas.snake_iterations, radius_px=meas.radius_px)
             polylines = [np.vstack([c, c[:1]]).astype(np.float32) for c in
                          (*meas.history[:-1], meas.contour_xy)]
+        commands: tuple[PanTiltCommand, ...] = ()
         if mm.initialised:
             est = mm.estimate()
-            extras.update(
+            det.update(
                 target_xyz=est.x[[0, 3, 6]].copy(), target_vel=est.x[[1, 4, 7]].copy(),
                 target_acc=est.x[[2, 5, 8]].copy(), target_cov=est.P.copy(),
                 model_probs=est.probs.copy(), omegas=mm.omegas.copy(),
@@ -224,12 +257,12 @@ class PtzTracker:
                 cmd = decide(head, pan, tilt, est.x[[0, 3, 6]] + est.x[[1, 4, 7]] * dt,
                              (int(2 * head.K[0, 2] + 1), int(2 * head.K[1, 2] + 1)),
                              p.deadband_px, StepLimits())
-                extras["ptz_command_deg"] = cmd
-                port = frame.extras.get("ptz_port")
+                det["command_deg"] = cmd
                 if cmd != (pan, tilt):
                     self.last_cmd = cmd
-                    if port is not None:
-                        port.command(*cmd)
+                    commands = (PanTiltCommand(*cmd),)
+        details = PtzDetails(pan_tilt_deg=(pan, tilt), resets=self.resets, reinitialised=reinit,
+                             predicted_uv=pred_uv, **det)
         overlay = Overlay(
             polylines_uv=tuple(polylines),
             crosshair_uv=(meas.u, meas.v) if meas is not None else None,
@@ -239,11 +272,13 @@ class PtzTracker:
             state=state,
             T_world_cam=T_wc,
             box_xywh=meas.box_xywh if meas is not None else None,
-            residual=extras.get("mean_nis"),
+            residual=details.mean_nis,
             timings_ms={"predict": (t1 - t0) * 1e3, "snake": (t2 - t1) * 1e3,
                         "mmae": (t3 - t2) * 1e3},
             overlay=overlay,
-            extras=extras,
+            details=details,
+            commands=commands,
+            message="target not found" if meas is None else "",
         )
 
     def _init_filter(self, z: np.ndarray, P_cam: np.ndarray, T_wc: np.ndarray) -> None:

@@ -71,7 +71,7 @@ def test_drag_main_region_and_three_patches_then_track(qtbot, ctx) -> None:  # t
     # a live edit goes to the engine as SetParams
     editor = page.form.editor("n_particles")
     editor.setValue(150)
-    qtbot.waitUntil(lambda: page.latest.result.extras["n_particles"] == 150, timeout=20000)
+    qtbot.waitUntil(lambda: page.latest.result.details.n_particles == 150, timeout=20000)
     with qtbot.waitSignal(page.bridge.finished, timeout=20000):
         page.stop_tracking()
 

@@ -15,6 +15,7 @@ from engine.errors import SourceError
 from engine.frames import Frame
 from engine.loop import SetParams, run_tracking
 from engine.sources import open_source
+from engine.sources.beacons import BeaconTruth, RangeReadings
 from engine.trackers import create_tracker, get_spec
 from engine.trackers.base import TrackState
 
@@ -32,10 +33,10 @@ def test_simulator_source_frames() -> None:
     assert len(frames) == len(src) == 21
     f = frames[5]
     assert f.color_bgr is None
-    assert set(f.extras["ranges"]) <= set(PAPER_LAYOUT)
+    assert set(f.payload(RangeReadings).ranges) <= set(PAPER_LAYOUT)
     assert f.gt_T_world_cam is not None
-    assert f.gt_T_world_cam[0, 3] == pytest.approx(f.extras["gt_xy"][0])
-    assert dict(f.extras["beacon_layout"]) == PAPER_LAYOUT
+    assert f.gt_T_world_cam[0, 3] == pytest.approx(f.payload(BeaconTruth).gt_xy[0])
+    assert dict(f.payload(RangeReadings).layout) == PAPER_LAYOUT
 
 
 @pytest.mark.parametrize("spec", ["beacons:nope=1", "beacons:noise=x", "beacons:dropout=2",
@@ -64,9 +65,10 @@ def test_tracker_runs_on_simulator_through_the_loop() -> None:
     assert T.shape == (4, 4)
     np.testing.assert_array_equal(T[:3, :3], np.eye(3))
     assert T[2, 3] == 0.0
-    assert last.extras["particles_xy"].shape == (80, 2)
-    assert last.extras["beacons_cov"].shape == (4, 2, 2)
-    err = [np.hypot(*(r.result.T_world_cam[:2, 3] - r.frame.extras["gt_xy"])) for r in recs]
+    assert last.details.particles_xy.shape == (80, 2)
+    assert last.details.beacons_cov.shape == (4, 2, 2)
+    err = [np.hypot(*(r.result.T_world_cam[:2, 3] - r.frame.payload(BeaconTruth).gt_xy))
+           for r in recs]
     assert float(np.sqrt(np.mean(np.square(err)))) < 1.5
 
 
@@ -86,10 +88,10 @@ def test_csv_source_with_layout_and_bad_lines(tmp_path: Path) -> None:
     assert len(src) == 15
     tr = create_tracker("beacon-slam", known_beacons=True)
     recs = list(run_tracking(src, tr))
-    stats = recs[-1].frame.extras["input_stats"]
+    stats = recs[-1].frame.payload(RangeReadings).input_stats
     assert stats["malformed"] == 1
     assert stats["unknown_ids"] == 1
-    assert recs[-1].result.extras["input_stats"]["unknown_id_names"] == ["X"]
+    assert recs[-1].result.details.input_stats["unknown_id_names"] == ["X"]
     np.testing.assert_allclose(recs[-1].result.T_world_cam[:2, 3], [1.4, 0.7], atol=0.3)
 
 
@@ -114,12 +116,13 @@ def test_udp_source_receives_and_sends_heartbeats() -> None:
         for rec in run_tracking(src, tr):
             frames.append(rec.frame)
             results.append(rec.result)
-            if sum(1 for f in frames if f.extras["ranges"]) == 5:
+            if sum(1 for f in frames if f.payload(RangeReadings).ranges) == 5:
                 break
     finally:
         th.join()
         src.close()
-    with_data = [f for f in frames if f.extras["ranges"]]
+    with_data = [f for f in frames if f.payload(RangeReadings).ranges]
     assert len(with_data) == 5
-    assert any(not f.extras["ranges"] for f in frames)  # heartbeat frames kept the loop alive
-    assert results[-1].extras["step"] == 4
+    # heartbeat frames kept the loop alive
+    assert any(not f.payload(RangeReadings).ranges for f in frames)
+    assert results[-1].details.step == 4

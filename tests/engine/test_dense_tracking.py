@@ -129,8 +129,8 @@ def test_loss_and_relock_after_covered_camera(scene: PlaneScene, name: str) -> N
         res = tr.track(f)
         states.append(res.state)
         poses.append(np.array(res.T_world_cam))
-        if "frames_to_relock" in res.extras:
-            relock = (i, res.extras["frames_to_relock"])
+        if res.details.frames_to_relock is not None:
+            relock = (i, res.details.frames_to_relock)
     assert all(s == TrackState.LOST for s in states[10:30])
     for i in range(10, 30):  # held, not extrapolated
         np.testing.assert_array_equal(poses[i], poses[9])
@@ -149,5 +149,5 @@ def test_set_params_takes_effect_next_frame(scene: PlaneScene) -> None:
     res = tr.track(scene.frame(1, _path(1)))
     assert res.overlay is not None
     assert res.overlay.points_uv is not None
-    assert res.extras["n_points"] == 1024
+    assert res.details.n_points == 1024
     assert res.overlay.points_uv.shape[0] <= 1024

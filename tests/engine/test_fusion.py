@@ -14,6 +14,7 @@ from engine.keyframes.fusion import (
 )
 from engine.keyframes.store import KeyframeStore
 from engine.sources import open_source
+from engine.studio.sim import StudioLabels
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,7 @@ def sweep():  # type: ignore[no-untyped-def]
         kf = store.add(
             f.gt_T_world_cam, cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY), np.array(f.depth_m)
         )
-        exact[kf.id] = f.extras["depth_exact_m"]
+        exact[kf.id] = f.payload(StudioLabels).depth_exact_m
     posed = [
         PosedFrame(
             f.index, cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY), f.depth_m, f.gt_T_world_cam

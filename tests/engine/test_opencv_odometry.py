@@ -102,7 +102,7 @@ def test_recovers_known_motion_on_rendered_frames() -> None:
     np.testing.assert_allclose(first.T_world_cam, poses[0])  # starts at ground truth
     for k in range(1, len(poses)):
         res = tr.track(frame_at(k, poses[k]))
-        assert res.state is TrackState.TRACKING, res.extras
+        assert res.state is TrackState.TRACKING, res.message
         assert {"prepare", "compute"} <= set(res.timings_ms)
     t_err, r_err = _err(res.T_world_cam, poses[-1])
     assert t_err < 0.001  # measured ~1e-5 m: the room has three planes, ICP is well posed
@@ -123,7 +123,7 @@ def test_frame_without_depth_is_lost_with_a_message_and_tracking_resumes() -> No
     res = tr.track(frame_at(0, poses[0], depth=False))
     assert res.state is TrackState.INITIALIZING
     assert res.T_world_cam is None
-    assert "needs depth" in res.extras["message"]
+    assert "needs depth" in res.message
     tr.track(frame_at(1, poses[1]))
     held = tr.track(frame_at(2, poses[2], depth=False))
     assert held.state is TrackState.LOST
@@ -141,10 +141,10 @@ def test_failed_compute_holds_pose_then_reanchors() -> None:
     empty = Frame(1, 1 / 30, bgr, CAM, np.zeros((CAM.height, CAM.width), np.float32))
     r1 = tr.track(empty)
     assert r1.state is TrackState.LOST
-    assert "compute failed" in r1.extras["message"]
+    assert "compute failed" in r1.message
     np.testing.assert_allclose(r1.T_world_cam, poses[0])
     r2 = tr.track(dataclasses.replace(empty, index=2))
-    assert "re-anchored" in r2.extras["message"]
+    assert "re-anchored" in r2.message
 
 
 def test_params_validation_and_set_params_next_frame() -> None:

@@ -101,12 +101,12 @@ def test_pref_comes_from_the_first_tracked_frames() -> None:
                     gt_box_xywh=f.box_xywh) for f in presenter_frames(14, 320, 240, seed=1)]
     params = PresenterParams(pref_init_frames=10)
     tracker = create_tracker("presenter", params)
-    p_cols = [tracker.track(f).extras for f in frames]
-    first_self_match = p_cols[0]["p_ref"]
-    boot = [e["p_col"] for e in p_cols[1:11]]
-    assert p_cols[10]["p_ref"] == np.median(boot)
-    assert p_cols[10]["p_ref"] <= first_self_match
+    p_cols = [tracker.track(f).details for f in frames]
+    first_self_match = p_cols[0].p_ref
+    boot = [e.p_col for e in p_cols[1:11]]
+    assert p_cols[10].p_ref == np.median(boot)
+    assert p_cols[10].p_ref <= first_self_match
     tracker0 = create_tracker("presenter", dataclasses.replace(params, pref_init_frames=0,
                                                                model_update_rate=0.0))
-    refs = [tracker0.track(f).extras["p_ref"] for f in frames[:3]]
+    refs = [tracker0.track(f).details.p_ref for f in frames[:3]]
     assert refs[1] >= 0.6 * refs[0]  # the paper's rule: Pref from the first frame

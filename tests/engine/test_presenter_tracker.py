@@ -11,10 +11,12 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from engine.evaluation.boxes import iou_xywh
 from engine.frames import Frame
 from engine.loop import SetParams, run_tracking
+from engine.presenter.control import RobotCameraCommand
 from engine.presenter.model import model_from_box, save_model
 from engine.presenter.params import PresenterParams
 from engine.presenter.scene import presenter_frames
@@ -81,7 +83,7 @@ def test_loss_is_detected_and_the_presenter_reacquired() -> None:
     iou = iou_xywh(np.array(frames[found + 2].gt_box_xywh), np.array(states[found + 2].box_xywh))
     assert float(iou[0]) > 0.3
     # while searching, the filter uses the larger diffuse particle set
-    assert states[lost_at + 2].extras["n_particles"] == PresenterParams().reinit_particles
+    assert states[lost_at + 2].details.n_particles == PresenterParams().reinit_particles
 
 
 def test_particle_count_change_mid_run_takes_effect() -> None:
@@ -90,7 +92,7 @@ def test_particle_count_change_mid_run_takes_effect() -> None:
     commands: queue.Queue = queue.Queue()
     counts = []
     for rec in run_tracking(ListSource(frames), tracker, commands=commands):
-        counts.append(rec.result.extras["n_particles"])
+        counts.append(rec.result.details.n_particles)
         if rec.seq == 4:
             commands.put(SetParams(dataclasses.replace(tracker.params, n_particles=250,
                                                        jitter_cutoff_hz=2.0)))
@@ -110,15 +112,26 @@ def test_initialised_from_a_saved_model_and_sends_udp(tmp_path: Path) -> None:
         params = PresenterParams(model_path=str(tmp_path / "model"), control_udp=True,
                                  control_port=rx.getsockname()[1], target_x_frac=0.25)
         tracker = create_tracker("presenter", params)
-        for f in frames:
-            r = tracker.track(dataclasses.replace(f, gt_box_xywh=None))  # no truth needed
-        msg = json.loads(rx.recvfrom(65536)[0])
+        bare = ListSource([dataclasses.replace(f, gt_box_xywh=None) for f in frames])
+        direct = create_tracker("presenter", params).track(bare._frames[0])
+        rx.settimeout(0.2)
+        with pytest.raises(TimeoutError):  # track() itself does no I/O ...
+            rx.recvfrom(65536)
+        [robot] = direct.commands_of(RobotCameraCommand)
+        assert robot.target == ("127.0.0.1", rx.getsockname()[1])
+        rx.settimeout(5.0)
+        # ... the pipeline's robot-control sink (the tracker brings it) sends the messages
+        recs = list(run_tracking(bare, tracker))
+        msgs = [json.loads(rx.recvfrom(65536)[0]) for _ in frames]
     finally:
         rx.close()
+    r = recs[-1].result
     assert r.state == TrackState.TRACKING
+    msg = msgs[0]
+    assert [m["seq"] for m in msgs] == list(range(1, len(frames) + 1))
     assert msg["seq"] == 1
     assert msg["target"]["x_px"] == 80.0
-    assert r.extras["control"].e_f_px[0] == r.extras["filtered_xyh"][0] - 80.0
+    assert r.details.control.e_f_px[0] == r.details.filtered_xyh[0] - 80.0
 
 
 def test_opencv_peers_track_generated_frames() -> None:

@@ -132,6 +132,9 @@ def test_single_ekf_runs() -> None:
 
 
 def test_ptz_tracker_closed_loop_short() -> None:
+    from engine.loop import run_tracking
+    from engine.ptz.head import PanTiltCommand, PtzHeadReading
+    from engine.ptz.sim import PtzTargetTruth
     from engine.trackers import create_tracker
     from engine.trackers.base import TrackState
 
@@ -140,13 +143,33 @@ def test_ptz_tracker_closed_loop_short() -> None:
     tr = create_tracker("ptz", target_b=40, target_g=40, target_r=210)
     pans = set()
     last = None
-    for f in src.frames():
-        last = tr.track(f), f
-        pans.add(f.extras["ptz_pan_tilt_deg"][0])
+    commands = 0
+    # the pipeline adds the simulated head's sink: the tracker's commands move the camera
+    for rec in run_tracking(src, tr):
+        last = rec.result, rec.frame
+        pans.add(rec.frame.payload(PtzHeadReading).pan_deg)
+        commands += len(rec.result.commands_of(PanTiltCommand))
     res, frame = last
     assert res.state is TrackState.TRACKING
-    err = np.linalg.norm(res.extras["target_xyz"] - frame.extras["target_xyz_world"])
+    err = np.linalg.norm(res.details.target_xyz - np.asarray(
+        frame.payload(PtzTargetTruth).xyz_world))
     assert err < 0.1
+    assert commands > 0
     assert len(pans) > 1  # the camera followed the commands in whole steps
     assert all(abs(p - round(p)) < 1e-9 for p in pans)
-    assert res.extras["model_probs"].sum() == pytest.approx(1.0)
+    assert res.details.model_probs.sum() == pytest.approx(1.0)
+
+
+def test_ptz_tracker_does_no_io_the_loop_stays_open_without_the_head_sink() -> None:
+    from engine.ptz.head import PtzHeadReading
+    from engine.trackers import create_tracker
+
+    sc = CircleScenario(duration_s=1.0, fps=30.0, width=320, height=240, f_px=400.0)
+    src = PtzSimSource(sc)
+    tr = create_tracker("ptz", target_b=40, target_g=40, target_r=210)
+    pans = set()
+    for f in src.frames():  # no pipeline: the commands are returned, nobody executes them
+        res = tr.track(f)
+        pans.add(f.payload(PtzHeadReading).pan_deg)
+    assert len(pans) == 1
+    assert res.commands

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from engine.errors import SourceError
+from engine.frames import SourceFiles
 from engine.sources import open_source
 from engine.sources.otb import OtbSource, read_box_file
 from tests.conftest import shared_path
@@ -40,7 +41,7 @@ def test_otb_girl_tab_separated() -> None:
             break
     assert frames[0].color_bgr is not None
     assert frames[0].color_bgr.shape == (96, 128, 3)
-    assert frames[0].extras["image_path"].endswith("img/0001.jpg")
+    assert frames[0].payload(SourceFiles).color_path.endswith("img/0001.jpg")
     assert frames[19].gt_box_xywh == tuple(expected[19])
     assert frames[1].timestamp_s == pytest.approx(1 / 30)
 
@@ -69,7 +70,7 @@ def test_mil_david_every_fifth_frame_labelled() -> None:
     assert all(i % 5 == 0 for i in labelled)
     it = src.frames()
     first = next(it)
-    assert first.extras["image_path"].endswith("imgs/img00001.png")
+    assert first.payload(SourceFiles).color_path.endswith("imgs/img00001.png")
     assert first.color_bgr is not None
     assert first.color_bgr.shape == (240, 320, 3)
     assert first.gt_box_xywh == boxes[0]

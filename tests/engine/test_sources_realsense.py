@@ -309,7 +309,7 @@ def test_unplugged_mid_run_reports_lost_then_reconnects(raise_error: bool) -> No
     assert states[:5] == [TrackState.TRACKING] * 5
     lost = [r for r in records if r.result.state is TrackState.LOST]
     assert len(lost) == 3  # two failed reopen attempts, then the camera is back
-    assert all(r.result.extras["lost_reason"] == DISCONNECTED for r in lost)
+    assert all(r.result.message == DISCONNECTED for r in lost)
     assert all(r.frame.color_bgr is None and r.frame.link_lost_reason == DISCONNECTED
                for r in lost)
     np.testing.assert_array_equal(lost[0].result.T_world_cam, np.eye(4))  # pose held

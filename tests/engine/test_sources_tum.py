@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from engine.camera import TUM_DEFAULTS, Intrinsics, save_camera_json
 from engine.errors import CalibrationError, SourceError, StudioTrackError
+from engine.frames import SourceFiles
 from engine.geometry import R_from_quat_xyzw, make_T, quat_xyzw_from_R, so3_exp
 from engine.sources import open_source
 from engine.sources.tum import (
@@ -123,8 +124,8 @@ def test_real_fr1_xyz_association_depth_gt_and_intrinsics() -> None:
     assert len(frames) == len(expected)
     for frame, (t_rgb, t_depth) in zip(frames, expected, strict=True):
         assert frame.timestamp_s == t_rgb
-        assert frame.extras["depth_timestamp_s"] == t_depth
-        assert frame.extras["depth_path"].endswith(depth[t_depth])
+        assert frame.depth_timestamp_s == t_depth
+        assert frame.payload(SourceFiles).depth_path.endswith(depth[t_depth])
         assert frame.color_bgr is not None
         assert frame.color_bgr.shape == (480, 640, 3)
         assert frame.color_bgr.dtype == np.uint8
@@ -134,7 +135,7 @@ def test_real_fr1_xyz_association_depth_gt_and_intrinsics() -> None:
         assert not frame.color_bgr.flags.writeable
         assert frame.intrinsics == src.intrinsics
     f0 = frames[0]
-    raw = cv2.imread(f0.extras["depth_path"], cv2.IMREAD_UNCHANGED)
+    raw = cv2.imread(f0.payload(SourceFiles).depth_path, cv2.IMREAD_UNCHANGED)
     np.testing.assert_allclose(f0.depth_m, raw.astype(np.float32) / 5000.0, rtol=1e-6)
     assert np.all((f0.depth_m == 0) == (raw == 0))
     assert 1.0 < float(np.median(f0.depth_m[f0.depth_m > 0])) < 1.4  # SOURCE.txt: ~1.18 m

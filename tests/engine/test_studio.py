@@ -13,6 +13,7 @@ from engine.errors import SourceError
 from engine.geometry import invert, transform_points
 from engine.sources import open_source
 from engine.sources.synthetic import SyntheticSource
+from engine.studio.sim import StudioLabels, StudioTruth
 
 SMALL = "width=160,height=120"
 
@@ -91,7 +92,7 @@ def test_presenter_occludes_the_set_and_box_matches_labels() -> None:
     src = _src(f"frames=60,presenter=1,path=static,{SMALL}")
     f = src.frame(20)
     assert f.gt_box_xywh is not None
-    labels = f.extras["labels"]
+    labels = f.payload(StudioLabels).labels
     mask = (labels >= 1) & (labels <= 3)
     x, y, bw, bh = f.gt_box_xywh
     ys, xs = np.nonzero(mask)
@@ -99,7 +100,7 @@ def test_presenter_occludes_the_set_and_box_matches_labels() -> None:
     empty = Renderer(src.studio.scene, src.intrinsics).render(f.gt_T_world_cam)
     assert np.all(f.depth_m[mask] < empty.depth_m[mask] - 0.05)
     assert np.array_equal(f.depth_m[~mask], empty.depth_m[~mask])
-    parts = f.extras["presenter_part_boxes"]
+    parts = f.payload(StudioTruth).presenter_part_boxes
     assert set(parts) == {"head", "torso", "legs"}
     head, legs = parts["head"], parts["legs"]
     assert head is not None
@@ -110,7 +111,7 @@ def test_presenter_occludes_the_set_and_box_matches_labels() -> None:
     torso = bgr[labels == 2].mean(axis=0)
     assert torso[0] > torso[2] + 30  # blue
     assert bgr[labels == 3].mean() < bgr[labels == 1].mean() - 40
-    feet = f.extras["presenter_pos_world"]
+    feet = f.payload(StudioTruth).presenter_pos_world
     assert feet[2] == 0.0
     assert abs(feet[1] - 2.4) < 1e-9
 
@@ -139,26 +140,26 @@ def test_presenter_start_and_last_cycles() -> None:
     assert len(src) == 90
     assert src.config.presenter is not None
     assert src.config.presenter.start_frame == 60
-    assert src.frame(59).extras["presenter_in_scene"] is False
+    assert src.frame(59).payload(StudioTruth).presenter_in_scene is False
     assert src.frame(59).gt_box_xywh is None
-    assert src.frame(60).extras["presenter_in_scene"] is True
+    assert src.frame(60).payload(StudioTruth).presenter_in_scene is True
 
 
 def test_ball_truth_projects_into_its_pixels() -> None:
     src = _src(f"frames=30,ball=1,path=static,{SMALL}")
     f = src.frame(0)
-    assert f.extras["ball_pixels"] > 10
-    x, y, bw, bh = f.extras["ball_box_xywh"]
-    u, v = f.extras["ball_center_px"]
+    assert f.payload(StudioTruth).ball_pixels > 10
+    x, y, bw, bh = f.payload(StudioTruth).ball_box_xywh
+    u, v = f.payload(StudioTruth).ball_center_px
     assert x <= u <= x + bw
     assert y <= v <= y + bh
-    red = f.color_bgr[f.extras["labels"] == 4].astype(float).mean(axis=0)
+    red = f.color_bgr[f.payload(StudioLabels).labels == 4].astype(float).mean(axis=0)
     assert red[2] > 2 * red[1]
     assert red[2] > 2 * red[0]
-    p0 = np.array(f.extras["ball_pos_world"])
+    p0 = np.array(f.payload(StudioTruth).ball_pos_world)
     c = np.array(src.config.ball.centre_m)
     assert abs(np.linalg.norm(p0 - c) - 1.0) < 1e-9
-    assert 2 * np.pi / f.extras["ball_omega_rad_s"] == pytest.approx(30.0)
+    assert 2 * np.pi / f.payload(StudioTruth).ball_omega_rad_s == pytest.approx(30.0)
 
 
 def test_rail_path_travels_3_3_m_back_and_forth_with_fixed_orientation() -> None:
@@ -228,7 +229,7 @@ def test_same_seed_same_arrays_other_seed_other_textures() -> None:
 
 def test_depth_noise_grows_with_distance_and_dropouts_make_holes() -> None:
     f = _src(f"frames=2,noise=1,dropouts=0.05,{SMALL}").frame(1)
-    exact = f.extras["depth_exact_m"]
+    exact = f.payload(StudioLabels).depth_exact_m
     valid = f.depth_m > 0
     hole_frac = 1.0 - valid.mean()
     assert 0.05 < hole_frac < 0.3  # blobs plus edge dropouts
@@ -273,8 +274,8 @@ def test_pose_override_renders_the_same_instant_from_another_camera() -> None:
     T[0, 3] += 0.5
     a, b = src.frame(12), src.frame(12, T)
     np.testing.assert_allclose(b.gt_T_world_cam, T)
-    assert b.extras["ball_pos_world"] == a.extras["ball_pos_world"]
-    assert b.extras["presenter_pos_world"] == a.extras["presenter_pos_world"]
+    assert b.payload(StudioTruth).ball_pos_world == a.payload(StudioTruth).ball_pos_world
+    assert b.payload(StudioTruth).presenter_pos_world == a.payload(StudioTruth).presenter_pos_world
     assert a.gt_box_xywh is not None
     assert b.gt_box_xywh is not None
     assert b.gt_box_xywh[0] < a.gt_box_xywh[0]  # camera moved right: presenter moves left
@@ -289,16 +290,16 @@ def test_dependent_options_need_their_switch(spec: str) -> None:
 def test_occluder_covers_about_a_third_of_a_static_view() -> None:
     src = _src(f"frames=200,path=static,occluder=1,{SMALL}")
     f = src.frame(90)
-    assert 0.25 < f.extras["occluder_fraction"] < 0.4
-    mask = f.extras["labels"] == 5
-    x, y, w, h = f.extras["occluder_box_xywh"]
+    assert 0.25 < f.payload(StudioTruth).occluder_fraction < 0.4
+    mask = f.payload(StudioLabels).labels == 5
+    x, y, w, h = f.payload(StudioTruth).occluder_box_xywh
     assert mask[int(y) : int(y + h), int(x) : int(x + w)].mean() > 0.9
     assert f.depth_m[mask].max() < 1.8  # 1.6 m in front of the rail, nearer than the set
 
 
 def test_covered_lens_gives_dark_frames_without_depth_but_keeps_the_truth() -> None:
     src = _src(f"frames=40,cover_start=10,cover_frames=5,{SMALL}")
-    covered = [src.frame(i).extras["covered"] for i in range(8, 17)]
+    covered = [src.frame(i).payload(StudioTruth).covered for i in range(8, 17)]
     assert covered == [False, False, True, True, True, True, True, False, False]
     f = src.frame(12)
     assert f.color_bgr.max() < 10

@@ -1,0 +1,213 @@
+"""The output clock (pure scheduling) and clocked pose outputs on loopback."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from engine.camera import Intrinsics
+from engine.frames import Frame
+from engine.outputs import OutputError
+from engine.outputs import opentrackio as ot
+from engine.outputs.clock import OutputClock, parse_rate
+from engine.outputs.sender import OutputConfig, OutputSample, OutputSet, TargetSpec, check_targets
+from engine.pipeline import Pipeline, RunPhase, SinkLevel
+from engine.results import TrackResult, TrackState
+from engine.sinks.pose_output import PoseOutputSink
+from engine.sources.base import Source
+
+
+def simulate(clock: OutputClock, arrivals: list[float], t_end: float, dt: float = 1e-4
+             ) -> list[float]:
+    """Fire times of ``clock`` for data arriving at ``arrivals`` (a 0.1 ms time step)."""
+    fires: list[float] = []
+    pending = sorted(arrivals)
+    t = 0.0
+    while t < t_end:
+        arrived = False
+        while pending and pending[0] <= t:
+            pending.pop(0)
+            clock.on_arrival(t)
+            arrived = True
+        if clock.should_fire(t, arrived):
+            fires.append(t)
+            clock.fired(t)
+        t += dt
+    return fires
+
+
+def test_rates_parse_to_exact_video_rates() -> None:
+    assert parse_rate("29.97") == pytest.approx(30000 / 1001)
+    assert parse_rate("23.976") == pytest.approx(24000 / 1001)
+    assert parse_rate(25) == 25.0
+    assert parse_rate("59.94") == pytest.approx(60000 / 1001)
+    with pytest.raises(OutputError):
+        parse_rate("fast")
+    with pytest.raises(OutputError):
+        parse_rate("0")
+
+
+def test_same_rate_locks_onto_the_frames_and_sends_on_arrival() -> None:
+    P = 1 / 30
+    rng = np.random.default_rng(0)
+    # frames at 30 Hz, tracker done 8..20 ms after capture
+    arrivals = [k * P + 0.008 + 0.012 * rng.random() for k in range(300)]
+    fires = simulate(OutputClock(30.0), arrivals, 300 * P)
+    gaps = np.diff(fires)
+    assert len(fires) == pytest.approx(300, abs=2)  # exactly one send per slot
+    assert gaps.max() <= 1.5 * P
+    # after locking, each send happens right when a frame is done (no wait for a tick)
+    late = [min(f - a for f in fires if f >= a) for a in arrivals[60:290]]
+    assert np.percentile(late, 95) < 0.002
+
+
+def test_lower_output_rate_keeps_its_rate() -> None:
+    arrivals = [k / 30 + 0.01 for k in range(300)]  # 10 s of 30 fps
+    fires = simulate(OutputClock(25.0), arrivals, 10.0)
+    assert len(fires) == pytest.approx(250, abs=3)
+
+
+def test_higher_output_rate_repeats_slots_between_frames() -> None:
+    arrivals = [k / 25 + 0.01 for k in range(100)]  # 4 s of 25 fps
+    fires = simulate(OutputClock(50.0), arrivals, 4.0)
+    assert len(fires) == pytest.approx(200, abs=3)
+    assert np.diff(fires).max() <= 1.5 / 50
+
+
+def test_a_stalled_tracker_does_not_stop_the_slots_and_no_burst_follows() -> None:
+    P = 1 / 30
+    arrivals = [k * P + 0.01 for k in range(30)] + [2.0 + k * P for k in range(30)]
+    fires = simulate(OutputClock(30.0), arrivals, 3.0)
+    gaps = np.diff(fires)
+    assert gaps.max() <= 1.5 * P  # slots go on through the 1 s gap
+    assert gaps.min() >= 0.45 * P  # and no burst when frames come back
+
+
+def test_sender_wakes_late_skips_missed_slots() -> None:
+    c = OutputClock(50.0)
+    c.start(0.0)
+    c.fired(0.0)
+    c.fired(0.5)  # the sender thread slept through ~24 slots
+    assert c.missed == 24
+    assert c.due == pytest.approx(0.52)
+
+
+def _rx() -> socket.socket:
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    rx.settimeout(0.05)
+    return rx
+
+
+def _drain(rx: socket.socket, until: float) -> list[tuple[float, bytes]]:
+    got = []
+    while time.monotonic() < until:
+        try:
+            got.append((time.monotonic(), rx.recv(65536)))
+        except TimeoutError:
+            pass
+    return got
+
+
+def test_clocked_outputs_hold_and_flag_lost_when_the_tracker_stops_delivering() -> None:
+    rx = _rx()
+    cfg = OutputConfig(targets=(TargetSpec("opentrackio", "127.0.0.1", rx.getsockname()[1]),))
+    out = OutputSet(cfg, rate_hz=50.0, stale_after_s=0.1)
+    try:
+        T = np.eye(4)
+        now = time.monotonic()
+        out.submit(OutputSample(0, 0.0, "TRACKING", T, capture_mono_s=now, done_mono_s=now))
+        got = _drain(rx, time.monotonic() + 0.5)  # no new sample: slots go on
+        st = out.stats()
+    finally:
+        out.close()
+        rx.close()
+    samples = [ot.decode_datagrams([d])[0] for _, d in got]
+    assert 20 <= len(samples) <= 28  # 50 Hz for 0.5 s
+    status = [s["tracker"]["status"] for s in samples]
+    assert status[0] == "TRACKING"
+    assert status[-1] == "LOST"  # stale after 0.1 s
+    assert len({s["timing"]["sequenceNumber"] for s in samples}) == len(samples)
+    assert st.clocked and st.held_ticks >= len(samples) - 2
+    assert np.isfinite(st.capture_to_send_ms[0])
+
+
+def test_bad_host_name_is_refused_in_one_line() -> None:
+    cfg = OutputConfig(targets=(TargetSpec("freed", "no.such.host.invalid", 40000),))
+    with pytest.raises(OutputError, match="cannot resolve") as info:
+        check_targets(cfg)
+    assert "\n" not in str(info.value)
+    with pytest.raises(OutputError, match="cannot reach"):
+        check_targets(OutputConfig(targets=(TargetSpec("freed", "192.0.2.1", 40000,
+                                                       bind_host="127.0.0.1"),)))
+    check_targets(OutputConfig(targets=(TargetSpec("freed", "127.0.0.1", 40000),)))
+
+
+class _Src(Source):
+    name = "paced"
+    nominal_fps = 50.0
+    live = False
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        return Intrinsics(fx=50, fy=50, cx=16, cy=12, width=32, height=24)
+
+    def __len__(self) -> int:
+        return 100000
+
+    def frames(self) -> Iterator[Frame]:
+        i = 0
+        while True:
+            T = np.eye(4)
+            T[0, 3] = 0.001 * i
+            yield Frame(i, i / 50.0, None, self.intrinsics, gt_T_world_cam=T)
+            i += 1
+
+
+class _Explodes:
+    name = "explodes"
+    params = None
+
+    def set_params(self, p: object) -> None: ...
+
+    def reset(self) -> None: ...
+
+    def track(self, frame: Frame) -> TrackResult:
+        if frame.index == 10:
+            raise RuntimeError("engine died")
+        return TrackResult(TrackState.TRACKING, frame.gt_T_world_cam)
+
+
+def test_engine_exception_mid_run_keeps_sending_flagged_lost_until_stop() -> None:
+    rx = _rx()
+    cfg = OutputConfig(targets=(TargetSpec("opentrackio", "127.0.0.1", rx.getsockname()[1]),))
+    sink = PoseOutputSink(cfg)  # real-time run: clocked at the source's 50 Hz
+    pipe = Pipeline(_Src(), _Explodes(), [sink], realtime=True, hold_on_fault=True)
+    stop = threading.Event()
+    th = threading.Thread(target=pipe.run, args=(stop.is_set,))
+    th.start()
+    try:
+        got = _drain(rx, time.monotonic() + 1.0)
+        assert pipe.phase is RunPhase.FAULT
+        health = sink.health()
+    finally:
+        stop.set()
+        th.join(5)
+        rx.close()
+    samples = [(t, ot.decode_datagrams([d])[0]) for t, d in got]
+    lost = [(t, s) for t, s in samples if s["tracker"]["status"] == "LOST"]
+    tracking = [s for _, s in samples if s["tracker"]["status"] == "TRACKING"]
+    assert len(tracking) >= 8
+    assert len(lost) >= 35  # ~0.8 s at 50 Hz after the fault
+    gaps = np.diff([t for t, _ in lost])
+    assert gaps.max() < 1.5 / 50 + 0.01
+    # the last good pose is held (x of frame 9), not extrapolated
+    assert lost[-1][1]["transforms"][0]["translation"] == tracking[-1]["transforms"][0][
+        "translation"]
+    assert health.level is SinkLevel.OK  # packets leave; the state says LOST
+    assert pipe.status().error == "RuntimeError: engine died"
