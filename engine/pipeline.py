@@ -16,12 +16,13 @@ control, head commands, 3D view...) and publishes it for a display:
 
 A source or a tracker may bring sinks of its own (``sinks()``): the ones that carry out the
 tracker's commands (ptz-sim's simulated head, the presenter's robot-camera control), so any
-pipeline that runs them closes their loop. A sink that raises is disabled for the rest of the run, reported (``FAILED`` in its health,
-an event) and tracking goes on. An exception of the source or the tracker is a *fault*:
-every sink hears ``on_fault`` (pose outputs then keep sending the last good pose flagged
-LOST at their own rate); :meth:`Pipeline.records` then closes the sinks and re-raises (CLI),
-while :meth:`Pipeline.run` with ``hold_on_fault`` keeps them open until ``should_stop()``
-(the operator's Stop) and returns the status with the error.
+pipeline that runs them closes their loop. A sink that raises is disabled for the rest of
+the run, reported (``FAILED`` in its health, an event) and tracking goes on. An exception
+of the source or the tracker is a *fault*: every sink hears ``on_fault`` (pose outputs then
+keep sending the last good pose flagged LOST at their own rate); :meth:`Pipeline.records`
+then closes the sinks and re-raises (CLI), while :meth:`Pipeline.run` with
+``hold_on_fault`` keeps them open until ``should_stop()`` (the operator's Stop) and returns
+the status with the error.
 
 Example::
 
