@@ -32,7 +32,7 @@ from engine.errors import TrackerError
 from engine.frames import Frame
 from engine.geometry import invert, rotation_angle_rad, se3_exp, se3_log
 from engine.keyframes.store import Keyframe, KeyframeStore, KeyframeStoreError, same_camera
-from engine.trackers.base import Overlay, TrackResult, TrackState
+from engine.results import Overlay, TrackResult, TrackState
 
 F64 = NDArray[np.float64]
 

@@ -4,8 +4,7 @@
   exposure (an encoder, or the simulator's exact angles);
 - :class:`PanTiltCommand` (tracker command): where the tracker wants the head to go;
 - :class:`HeadPort`: what a head driver offers (the simulator's port, later a VISCA
-  camera); :class:`HeadCommandSink` (registered in :mod:`engine.sinks.head`) moves it on
-  each command.
+  camera); :class:`HeadCommandSink` moves it on each command (sink ``pan-tilt-head``).
 
 The tracker never talks to the head: it reads the payload and returns commands.
 """
@@ -20,6 +19,7 @@ from engine.pipeline import SinkBase, SinkHealth, SinkLevel
 from engine.ptz.kinematics import PtzHead
 from engine.records import FrameRecord
 from engine.results import TrackerCommand
+from engine.sinks import SinkSpec
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,3 +67,7 @@ class HeadCommandSink(SinkBase):
     def health(self) -> SinkHealth:
         msg = "" if self.last is None else f"last move {self.last[0]:.1f}° / {self.last[1]:.1f}°"
         return SinkHealth(self.name, SinkLevel.OK, msg, counters={"commands": self.commands})
+
+
+SINKS = (SinkSpec("pan-tilt-head", "moves a pan-tilt head on the tracker's commands",
+                  HeadCommandSink),)

@@ -31,6 +31,7 @@ from engine.pipeline import SinkBase, SinkHealth, SinkLevel
 from engine.records import FrameRecord
 from engine.session import FORMAT_NAME, FORMAT_VERSION, RecordingStopped, SessionError
 from engine.session.reader import decode_depth_png
+from engine.sinks import SinkSpec
 from engine.sources.base import Source
 from engine.sources.video import VIDEO_SUFFIXES
 
@@ -379,3 +380,6 @@ def record_session(
         sink.close()
     if recorder.stopped:
         raise RecordingStopped(recorder._message())
+
+
+SINKS = (SinkSpec("recorder", "records a replayable session folder", RecorderSink),)

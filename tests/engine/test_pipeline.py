@@ -264,3 +264,10 @@ def test_sink_health_is_asked_from_status() -> None:
     list(pipe.records())
     [h] = pipe.status().sinks
     assert (h.level, h.message) == (SinkLevel.ALARM, "no route to host")
+
+
+def test_sinks_are_registered_like_trackers() -> None:
+    from engine.sinks import available_sinks
+
+    assert {"pose-outputs", "recorder", "robot-camera", "pan-tilt-head", "3d-view"} <= set(
+        available_sinks())
