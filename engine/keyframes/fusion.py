@@ -20,16 +20,17 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import Intrinsics, pixels_to_normalized
-from engine.errors import StudioTrackError
+from engine.errors import ParamsError, StudioTrackError
 from engine.geometry import invert
 from engine.keyframes.store import KeyframeStore
+from engine.params import Params, param
 
 F64 = NDArray[np.float64]
 
@@ -39,47 +40,23 @@ class FusionError(StudioTrackError):
 
 
 @dataclass(frozen=True, slots=True)
-class FusionParams:
+class FusionParams(Params):
     """Depth fusion settings (one group; units in the names)."""
 
-    delta_inv_m: float = field(
-        default=0.01,
-        metadata={
-            "help": "inverse-depth window delta around the median (1/m); about 3x the "
-            "sensor's inverse-depth noise (Kinect: ~0.003 1/m)",
-            "min": 1e-4,
-            "max": 1.0,
-            "step": 0.001,
-        },
-    )
-    color_tol: float = field(
-        default=20.0,
-        metadata={
-            "help": "reject samples whose grey value differs more from the "
-            "keyframe pixel (grey levels)",
-            "min": 1.0,
-            "max": 255.0,
-        },
-    )
-    min_samples: int = field(
-        default=2,
-        metadata={"help": "samples within +-delta needed for a fused depth", "min": 1, "max": 100},
-    )
-    min_depth_m: float = field(default=0.3, metadata={"help": "nearest usable depth", "min": 0.0})
-    max_depth_m: float = field(default=8.0, metadata={"help": "farthest usable depth", "min": 0.1})
-    pixel_stride: int = field(
-        default=1,
-        metadata={"help": "use every n-th frame pixel in x and y (speed)", "min": 1, "max": 8},
-    )
+    delta_inv_m: float = param(0.01, lo=1e-4, hi=1.0, step=0.001, label="delta inv. depth (1/m)",
+                               help="inverse-depth window delta around the median (1/m); about "
+                               "3x the sensor's inverse-depth noise (Kinect: ~0.003 1/m)")
+    color_tol: float = param(20.0, lo=1.0, hi=255.0,
+                             help="reject samples whose grey value differs more from the "
+                             "keyframe pixel (grey levels)")
+    min_samples: int = param(2, lo=1, hi=100,
+                             help="samples within +-delta needed for a fused depth")
+    min_depth_m: float = param(0.3, lo=0.0, help="nearest usable depth (m)")
+    max_depth_m: float = param(8.0, lo=0.1, help="farthest usable depth (m)")
+    pixel_stride: int = param(1, lo=1, hi=8, help="use every n-th frame pixel in x and y (speed)")
 
-    def __post_init__(self) -> None:
-        from engine.errors import ParamsError
-
-        if not (self.delta_inv_m > 0 and self.color_tol > 0):
-            raise ParamsError("fusion delta_inv_m and color_tol must be positive")
-        if self.min_samples < 1 or self.pixel_stride < 1:
-            raise ParamsError("fusion min_samples and pixel_stride must be at least 1")
-        if not 0 <= self.min_depth_m < self.max_depth_m:
+    def validate(self) -> None:
+        if not self.min_depth_m < self.max_depth_m:
             raise ParamsError(
                 f"fusion depth range [{self.min_depth_m}, {self.max_depth_m}] m is empty"
             )

@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -53,6 +53,7 @@ from engine.keyframes.sba_residuals import (
     unpack,
 )
 from engine.keyframes.store import KeyframeStore
+from engine.params import Params, param
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_matrix
@@ -65,112 +66,45 @@ class SBAError(StudioTrackError):
 
 
 @dataclass(frozen=True, slots=True)
-class SBAParams:
+class SBAParams(Params):
     """Bundle adjustment settings (one group; units in the names)."""
 
-    min_points: int = field(
-        default=6,
-        metadata={"help": "points seen in 2+ keyframes needed to run", "min": 3, "max": 1000},
-    )
-    min_points_per_keyframe: int = field(
-        default=3,
-        metadata={"help": "annotated points a refined keyframe needs", "min": 3, "max": 100},
-    )
-    loss: str = field(
-        default="cauchy",
-        metadata={"help": "robust loss: linear|huber|soft_l1|cauchy (cauchy ignores mis-clicks)"},
-    )
-    loss_scale_px: float = field(
-        default=0.1,
-        metadata={
-            "help": "robust loss scale (px), the smallest used (see robust_k): larger "
-            "residuals are down-weighted",
-            "min": 0.1,
-            "max": 100.0,
-        },
-    )
-    depth_loss_scale: float = field(
-        default=0.1,
-        metadata={
-            "help": "robust loss scale of the depth term (in its noise sigmas): depth "
-            "samples disagreeing with the points are down-weighted",
-            "min": 0.1,
-            "max": 1.0e9,
-        },
-    )
-    robust_k: float = field(
-        default=2.385,
-        metadata={
-            "help": "robust scales follow the residuals: k x their robust sigma "
-            "(median based), at least the scales above; 0: fixed scales",
-            "min": 0.0,
-            "max": 100.0,
-        },
-    )
-    use_depth: bool = field(
-        default=True,
-        metadata={"help": "use the keyframe depth at each observation (fixes the metric scale)"},
-    )
-    depth_sigma_rel: float = field(
-        default=0.002,
-        metadata={
-            "help": "depth sensor noise as a fraction of the depth; the depth map's own "
-            "local noise (plane-fit residual at the observation) is added to it",
-            "min": 1e-4,
-            "max": 1.0,
-        },
-    )
-    max_nfev: int = field(
-        default=200, metadata={"help": "function evaluations", "min": 5, "max": 10000}
-    )
-    depth_edge_rel: float = field(
-        default=0.03,
-        metadata={
-            "help": "no depth term where the 3x3 depths spread more than "
-            "this fraction (a depth edge)",
-            "min": 0.0,
-            "max": 10.0,
-        },
-    )
-    pose_prior_m: float = field(
-        default=0.0,
-        metadata={
-            "help": "weak prior on each keyframe's tracked camera position "
-            "(m, 1 sigma; 0: none): damps directions the points leave "
-            "nearly free (long sweeps of a flat studio)",
-            "min": 0.0,
-            "max": 10.0,
-        },
-    )
-    pose_prior_deg: float = field(
-        default=0.0,
-        metadata={
-            "help": "weak prior on each keyframe's tracked orientation (deg, 1 sigma; 0: none)",
-            "min": 0.0,
-            "max": 180.0,
-        },
-    )
-    min_spread_px: float = field(
-        default=3.0,
-        metadata={
-            "help": "points of a keyframe spanning less than this across "
-            "their main line count as collinear",
-            "min": 0.0,
-            "max": 100.0,
-        },
-    )
-
-    def __post_init__(self) -> None:
-        from engine.errors import ParamsError
-
-        if self.loss not in ("linear", "huber", "soft_l1", "cauchy", "arctan"):
-            raise ParamsError(
-                f"SBA loss {self.loss!r} is not one of linear, huber, soft_l1, cauchy"
-            )
-        if self.min_points < 3 or self.min_points_per_keyframe < 3:
-            raise ParamsError("SBA needs at least 3 points (min_points, min_points_per_keyframe)")
-        if not (self.loss_scale_px > 0 and self.depth_sigma_rel > 0 and self.max_nfev > 0):
-            raise ParamsError("SBA loss_scale_px, depth_sigma_rel and max_nfev must be positive")
+    min_points: int = param(6, lo=3, hi=1000, help="points seen in 2+ keyframes needed to run")
+    min_points_per_keyframe: int = param(3, lo=3, hi=100,
+                                         help="annotated points a refined keyframe needs")
+    loss: str = param("cauchy", choices=("linear", "huber", "soft_l1", "cauchy", "arctan"),
+                      help="robust loss of the reprojection residuals (cauchy ignores mis-clicks)")
+    loss_scale_px: float = param(0.1, lo=0.1, hi=100.0,
+                                 help="robust loss scale (px), the smallest used (see robust_k): "
+                                 "larger residuals are down-weighted")
+    depth_loss_scale: float = param(0.1, lo=0.1, hi=1.0e9,
+                                    help="robust loss scale of the depth term (in its noise "
+                                    "sigmas): depth samples disagreeing with the points are "
+                                    "down-weighted")
+    robust_k: float = param(2.385, lo=0.0, hi=100.0,
+                            help="robust scales follow the residuals: k x their robust sigma "
+                            "(median based), at least the scales above; 0: fixed scales")
+    use_depth: bool = param(True,
+                            help="use the keyframe depth at each observation (fixes the metric "
+                            "scale)")
+    depth_sigma_rel: float = param(0.002, lo=1e-4, hi=1.0,
+                                   help="depth sensor noise as a fraction of the depth; the "
+                                   "depth map's own local noise (plane-fit residual at the "
+                                   "observation) is added to it")
+    max_nfev: int = param(200, lo=5, hi=10000, help="function evaluations")
+    depth_edge_rel: float = param(0.03, lo=0.0, hi=10.0,
+                                  help="no depth term where the 3x3 depths spread more than this "
+                                  "fraction (a depth edge)")
+    pose_prior_m: float = param(0.0, lo=0.0, hi=10.0,
+                                help="weak prior on each keyframe's tracked camera position (m, "
+                                "1 sigma; 0: none): damps directions the points leave nearly "
+                                "free (long sweeps of a flat studio)")
+    pose_prior_deg: float = param(0.0, lo=0.0, hi=180.0,
+                                  help="weak prior on each keyframe's tracked orientation (deg, "
+                                  "1 sigma; 0: none)")
+    min_spread_px: float = param(3.0, lo=0.0, hi=100.0,
+                                 help="points of a keyframe spanning less than this across their "
+                                 "main line count as collinear")
 
 
 @dataclass(frozen=True, slots=True)
