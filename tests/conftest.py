@@ -2,13 +2,18 @@
 
 - Qt runs offscreen (set before any Qt import).
 - ``shared_data`` gives ``../shared/data`` or skips with a clear reason when it is absent.
-- No test may leave a QThread running (napari's dangling-thread check).
+- No test may leave a QThread running (napari's dangling-thread check: ``QThread.start`` is
+  patched, so every thread is seen).
 """
 
 from __future__ import annotations
 
 import os
+import traceback
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
+from weakref import WeakKeyDictionary
 
 import pytest
 
@@ -36,18 +41,41 @@ def shared_path(*parts: str) -> Path:
     return p
 
 
-@pytest.fixture(autouse=True)
-def _no_dangling_qthreads(request: pytest.FixtureRequest):  # type: ignore[no-untyped-def]
-    yield
-    if "qtbot" not in request.fixturenames:
-        return
+def _install_qthread_start_spy() -> WeakKeyDictionary[Any, str]:
+    """Patch ``QThread.start`` once so that every thread any code starts is seen (not only
+    those that register themselves): thread -> where it was started."""
     from PySide6.QtCore import QThread
 
-    from app.engine_bridge import running_threads
+    started: WeakKeyDictionary[Any, str] = WeakKeyDictionary()
+    base_start = QThread.start
 
-    alive = [t for t in running_threads() if isinstance(t, QThread) and t.isRunning()]
+    def start(self: QThread, *args: Any, **kwargs: Any) -> None:
+        caller = traceback.extract_stack(limit=2)[0]  # the frame that called start()
+        started[self] = f"{type(self).__name__} started at {caller.filename}:{caller.lineno}"
+        base_start(self, *args, **kwargs)
+
+    QThread.start = start  # type: ignore[method-assign]
+    return started
+
+
+_STARTED_QTHREADS = _install_qthread_start_spy()
+
+
+@pytest.fixture(autouse=True)
+def _no_dangling_qthreads() -> Iterator[None]:
+    """No test may leave a QThread running (napari's check: ``QThread.start`` is patched)."""
+    yield
+    alive = []
+    for thread, where in list(_STARTED_QTHREADS.items()):
+        try:
+            running = thread.isRunning()
+        except RuntimeError:  # the C++ object is already deleted: not running
+            continue
+        if running:
+            alive.append(where)
+            thread.requestInterruption()
+            thread.quit()
+            thread.wait(5000)
+    _STARTED_QTHREADS.clear()
     if alive:
-        for t in alive:
-            t.requestInterruption()
-            t.wait(5000)
-        pytest.fail(f"test left {len(alive)} QThread(s) running: {alive}")
+        pytest.fail(f"test left {len(alive)} QThread(s) running: {'; '.join(alive)}")
