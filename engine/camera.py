@@ -154,34 +154,63 @@ def backproject_depth_image(cam: Intrinsics, depth_m: NDArray[np.floating]) -> F
     return backproject(cam, uv, z).reshape(h, w, 3)
 
 
+#: accepted ranges of camera.json values (far beyond real cameras, far inside float range)
+FOCAL_MAX_PX = 1e7
+SIZE_MAX_PX = 100_000
+DIST_MAX = 1e4
+DEPTH_SCALE_MAX = 1e9
+
+
+def intrinsics_from_json(
+    raw: object, where: str, error: type[Exception] = CalibrationError
+) -> Intrinsics:
+    """Intrinsics from a ``camera.json``-style object (also embedded in keyframe stores and
+    sessions); every value goes through :func:`engine.validate.number`, so a non-number,
+    ``nan``, ``1e400``, a 400-digit integer, ``fx: 1e308`` or ``width: 160.5`` raises
+    ``error`` with one line naming ``where`` and the key."""
+    from engine.validate import number
+
+    if not isinstance(raw, dict):
+        raise error(f"{where}: expected a JSON object, got {type(raw).__name__}")
+    missing = [k for k in ("fx", "fy", "cx", "cy", "width", "height") if k not in raw]
+    if missing:
+        raise error(f"{where}: missing key(s) {', '.join(missing)}")
+    dist = raw.get("distortion", [0.0] * 5)
+    if not isinstance(dist, list) or len(dist) != 5:
+        raise error(f"{where}: 'distortion' must be a list of 5 numbers")
+
+    def num(key: str, **rule: float) -> float:
+        return number(raw[key], f"{where}: '{key}'", error=error, **rule)  # type: ignore[arg-type]
+
+    def size(key: str) -> int:
+        return number(raw[key], f"{where}: '{key}'", integer=True, lo=1, hi=SIZE_MAX_PX,
+                      error=error)
+
+    values = dict(
+        fx=num("fx", gt=0, hi=FOCAL_MAX_PX), fy=num("fy", gt=0, hi=FOCAL_MAX_PX),
+        cx=num("cx", lo=-FOCAL_MAX_PX, hi=FOCAL_MAX_PX),
+        cy=num("cy", lo=-FOCAL_MAX_PX, hi=FOCAL_MAX_PX),
+        width=size("width"), height=size("height"),
+        dist_k1k2p1p2k3=tuple(
+            number(v, f"{where}: 'distortion'[{i}]", lo=-DIST_MAX, hi=DIST_MAX, error=error)
+            for i, v in enumerate(dist)
+        ),
+        depth_scale=number(raw.get("depth_scale", 5000.0), f"{where}: 'depth_scale'", gt=0,
+                           hi=DEPTH_SCALE_MAX, error=error),
+    )
+    try:
+        return Intrinsics(**values)  # type: ignore[arg-type]
+    except CalibrationError as exc:
+        raise error(f"{where}: {exc}") from None
+
+
 def load_camera_json(path: str | Path) -> Intrinsics:
     """Read ``camera.json`` (fx, fy, cx, cy, width, height, distortion[5], depth_scale)."""
     path = Path(path)
     from engine.persist import read_json_file
 
     raw = read_json_file(path, CalibrationError, missing="file not found")
-    if not isinstance(raw, dict):
-        raise CalibrationError(f"{path}: expected a JSON object, got {type(raw).__name__}")
-    missing = [k for k in ("fx", "fy", "cx", "cy", "width", "height") if k not in raw]
-    if missing:
-        raise CalibrationError(f"{path}: missing key(s) {', '.join(missing)}")
-    try:
-        dist = raw.get("distortion", [0.0] * 5)
-        if not isinstance(dist, list) or len(dist) != 5:
-            raise CalibrationError(f"{path}: 'distortion' must be a list of 5 numbers")
-        return Intrinsics(
-            fx=_num(raw["fx"], "fx", path),
-            fy=_num(raw["fy"], "fy", path),
-            cx=_num(raw["cx"], "cx", path),
-            cy=_num(raw["cy"], "cy", path),
-            width=int(_num(raw["width"], "width", path)),
-            height=int(_num(raw["height"], "height", path)),
-            dist_k1k2p1p2k3=tuple(_num(v, "distortion", path) for v in dist),  # type: ignore[arg-type]
-            depth_scale=_num(raw.get("depth_scale", 5000.0), "depth_scale", path),
-        )
-    except CalibrationError as exc:
-        msg = str(exc)
-        raise CalibrationError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+    return intrinsics_from_json(raw, str(path))
 
 
 def save_camera_json(cam: Intrinsics, path: str | Path) -> None:
@@ -189,12 +218,6 @@ def save_camera_json(cam: Intrinsics, path: str | Path) -> None:
     from engine.persist import atomic_write_text
 
     atomic_write_text(Path(path), json.dumps(cam.to_json_dict(), indent=2) + "\n")
-
-
-def _num(value: object, key: str, path: Path) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise CalibrationError(f"{path}: '{key}' must be a number, got {value!r}")
-    return float(value)
 
 
 # TUM RGB-D default calibrations (https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats)

@@ -6,6 +6,7 @@ annotate, bundle-adjust). Layout::
     project.json        {"format": "studiotrack-project", "version": 1, "name": ...,
                          "revision": 3, "data": "rev-0003", "saved_utc": ...}
     project.json.bak    the previous project.json (points at the previous revision)
+    project.json.damaged-<time>  a damaged project.json found by a save (kept, never reused)
     rev-0003/           the current revision, written completely before project.json
         camera.json         calibration (engine.camera format), optional
         keyframes/          keyframe store (engine.keyframes.store format), optional
@@ -35,12 +36,15 @@ from numpy.typing import NDArray
 from engine.camera import Intrinsics
 from engine.errors import CalibrationError, StudioTrackError
 from engine.persist import read_json_file
+from engine.validate import shown
 
 F64 = NDArray[np.float64]
 
 PROJECT_FORMAT = "studiotrack-project"
 PROJECT_VERSION = 1
 INDEX_NAME = "project.json"
+#: revisions are numbered 1..MAX_REVISION (rev-NNNN folder names stay short)
+MAX_REVISION = 999_999_999
 ANNOTATIONS_FORMAT = "studiotrack-annotations"
 
 
@@ -115,18 +119,24 @@ class Project:
         index_path = target / INDEX_NAME
         prev_rev = 0
         prev_data: str | None = None
+        damaged = False
         if index_path.exists():
             try:
                 prev = _read_index(target)
                 prev_rev, prev_data = int(prev["revision"]), str(prev["data"])
             except ProjectError:
-                # a damaged index is kept as a backup file, never overwritten silently
+                # a damaged index is kept aside (project.json.damaged-<time>) and the good
+                # backup project.json.bak is left alone: neither is overwritten silently
+                damaged = True
                 prev_rev = _max_revision(target)
         elif target.is_dir() and any(target.iterdir()):
             raise ProjectError(f"{target}: folder is not empty and holds no {INDEX_NAME}")
         target.mkdir(parents=True, exist_ok=True)
         _remove_stale_temps(target)
         rev = max(prev_rev, _max_revision(target)) + 1
+        if rev > MAX_REVISION:
+            raise ProjectError(f"{target}: revision {rev} is beyond {MAX_REVISION}; save the "
+                               "project to a new folder")
         data_name = f"rev-{rev:04d}"
         tmp = target / f".{data_name}.tmp"
         if tmp.exists():
@@ -140,7 +150,11 @@ class Project:
             raise
         from engine.persist import atomic_write_json, backup_existing
 
-        if index_path.exists():
+        if damaged:
+            stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+            shutil.copy2(index_path, _free_name(index_path.with_name(
+                f"{INDEX_NAME}.damaged-{stamp}")))
+        elif index_path.exists():
             backup_existing(index_path)  # project.json.bak -> previous revision
         index = {
             "format": PROJECT_FORMAT,
@@ -274,17 +288,30 @@ def _read_index(folder: Path) -> dict[str, Any]:
     rev = raw.get("revision")
     if not isinstance(data, str) or not data.startswith("rev-") or "/" in data or "\\" in data:
         raise ProjectError(f"{path}: 'data' must name a rev-NNNN folder, got {data!r}")
-    if not isinstance(rev, int):
+    if not isinstance(rev, int) or isinstance(rev, bool):
         raise ProjectError(f"{path}: 'revision' must be an integer, got {rev!r}")
+    if not 0 <= rev <= MAX_REVISION:
+        raise ProjectError(f"{path}: 'revision' {shown(rev)} is outside 0..{MAX_REVISION}")
     return raw
 
 
 def _max_revision(folder: Path) -> int:
+    """The highest rev-NNNN folder number (names beyond MAX_REVISION are not revisions)."""
     best = 0
     for p in folder.glob("rev-*"):
-        with contextlib.suppress(ValueError):
-            best = max(best, int(p.name[4:]))
+        digits = p.name[4:]
+        if digits.isdigit() and len(digits) <= len(str(MAX_REVISION)):
+            best = max(best, min(int(digits), MAX_REVISION))
     return best
+
+
+def _free_name(path: Path) -> Path:
+    """``path``, or ``path.1``, ``path.2``... the first that does not exist."""
+    candidate, n = path, 0
+    while candidate.exists():
+        n += 1
+        candidate = path.with_name(f"{path.name}.{n}")
+    return candidate
 
 
 def _remove_stale_temps(folder: Path) -> None:

@@ -2,14 +2,40 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import sys
+from pathlib import Path
 from typing import Any
 
-from engine.progress import log
+from engine.progress import log, warn
+from engine.validate import cli_number as number_arg
+from engine.validate import cli_port as port_arg
 
-__all__ = ["emit_json", "log"]
+__all__ = ["emit_json", "log", "number_arg", "port_arg", "run_inputs", "warn"]
+
+
+def run_inputs(args: Any, *sources: Any, skip: tuple[str, ...] = ("out",)) -> list[Path]:
+    """Every path the run reads: each source's own inputs and every command-line value that
+    names an existing file or folder (except the ``skip`` options, the outputs)."""
+    paths: list[Path] = []
+    for src in sources:
+        if src is not None and hasattr(src, "input_paths"):
+            paths += list(src.input_paths())
+    for key, value in vars(args).items():
+        if key in skip or key == "func":
+            continue
+        for v in value if isinstance(value, list | tuple) else (value,):
+            if isinstance(v, str | Path) and str(v):
+                p = Path(v)
+                with contextlib.suppress(OSError, ValueError):
+                    if p.exists():
+                        paths.append(p)
+                for prefix in ("beacons-csv:",):  # spec strings that embed a file name
+                    if isinstance(v, str) and v.startswith(prefix):
+                        paths.append(Path(v[len(prefix):].split(",", 1)[0]))
+    return paths
 
 
 def _clean(obj: Any) -> Any:

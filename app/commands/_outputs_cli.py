@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from app.commands._common import log
+from app.commands._common import log, number_arg
 from engine.outputs import OutputError
 
 
@@ -50,7 +50,8 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("pose outputs (UDP; bind to 127.0.0.1 unless --output-bind)")
     g.add_argument("--freed", action="append", default=[], metavar="HOST:PORT",
                    help="send FreeD D1 packets to HOST:PORT (repeatable; broadcast allowed)")
-    g.add_argument("--freed-camera-id", type=int, default=1, metavar="N",
+    g.add_argument("--freed-camera-id", type=number_arg(integer=True, lo=0, hi=255), default=1,
+                   metavar="N",
                    help="FreeD camera id 0-255 (default 1)")
     g.add_argument("--freed-lens", choices=("raw", "mm100", "mm64"), default="mm100",
                    help="FreeD zoom/focus fields: raw values, or focal length/focus distance "
@@ -58,7 +59,8 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--opentrackio", action="append", default=[], metavar="HOST:PORT[,cbor]",
                    help="send OpenTrackIO samples (JSON, or CBOR with ',cbor'); "
                    "'multicast' means 239.135.1.<source number>:55555")
-    g.add_argument("--opentrackio-source", type=int, default=1, metavar="N",
+    g.add_argument("--opentrackio-source", type=number_arg(integer=True, lo=1, hi=200),
+                   default=1, metavar="N",
                    help="OpenTrackIO sourceNumber 1-200 (default 1)")
     g.add_argument("--output-bind", default=None, metavar="ADDR",
                    help="local address the output sockets bind to (default 127.0.0.1 for "
@@ -66,7 +68,7 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--output-delay-ms", default=None, metavar="MS|AXIS=MS,...",
                    help="delay applied to the outputs: one value for all axes, or per axis, "
                    "e.g. 'x=40,y=40,z=40,pan=33,tilt=33,roll=33' (negative = predict ahead)")
-    g.add_argument("--sensor-width-mm", type=float, default=9.59,
+    g.add_argument("--sensor-width-mm", type=number_arg(gt=0, hi=1000), default=9.59,
                    help="sensor width used to express focal length in mm (default 9.59, 2/3\")")
     g.add_argument("--studio-frame", type=Path, default=None, metavar="FILE.json",
                    help="studio frame JSON ({\"T_world_studio\": 4x4}); default identity")
@@ -159,28 +161,62 @@ def describe(sink: Any) -> str:
     return "; ".join(f"{t.name} (bind {t.effective_bind})" for t in sink.config.targets)
 
 
+def outputs_summary(stats: Any) -> dict[str, Any]:
+    """The sender's counters for ``--json`` plus the totals and the verdict: ``errors`` counts
+    send and encode errors (a pose FreeD cannot carry is an encode error), ``nothing_sent``
+    is true when samples were due but no target sent a single packet."""
+    d = dict(stats.to_json_dict())
+    send_errors = sum(t.errors for t in stats.targets)
+    d["packets_sent"] = stats.packets_sent
+    d["send_errors"] = send_errors
+    d["errors"] = send_errors + stats.encode_errors
+    due = stats.processed - stats.skipped_no_pose
+    d["nothing_sent"] = bool(stats.packets_sent == 0 and due > 0 and d["errors"] > 0)
+    last = stats.last_encode_error or next(
+        (t.last_error for t in stats.targets if t.last_error), "")
+    d["problem"] = (f"{d['errors']} error(s) for {due} sample(s); last: {last}"
+                    if d["errors"] else "")
+    return d
+
+
 def report(sink: Any) -> dict[str, Any] | None:
     """Log the per-target counts after a run; the sender statistics (for ``--json``)."""
     st = sink.stats()
     if st is None:
         return None
-    log("outputs sent: " + "; ".join(
-        f"{t.name} {t.packets_sent} packets, {t.errors} errors"
+    line = "outputs sent: " + "; ".join(
+        f"{t.name} {t.packets_sent} packets, {t.errors} send errors"
         + (f" (last: {t.last_error})" if t.last_error else "") for t in st.targets)
-        + f"; dropped {st.dropped}")
-    return dict(st.to_json_dict())
+    line += f"; dropped {st.dropped}; encode errors {st.encode_errors}"
+    if st.encode_errors:
+        line += f" (last: {st.last_encode_error})"
+    if st.skipped_no_pose:
+        line += f"; {st.skipped_no_pose} sample(s) without a pose to send"
+    log(line)
+    return outputs_summary(st)
+
+
+class Sending:
+    """What ``with sending(args) as send`` gives: ``send.sinks`` for the pipeline and, after
+    the block, ``send.summary`` (the counters for ``--json``; None without outputs)."""
+
+    def __init__(self, sinks: list[Any]) -> None:
+        self.sinks = sinks
+        self.summary: dict[str, Any] | None = None
 
 
 @contextlib.contextmanager
-def sending(args: argparse.Namespace) -> Iterator[list[Any]]:
-    """``with sending(args) as sinks: run_tracker(..., sinks=sinks)`` - empty when no output
-    was asked; logs where the outputs send and, at the end, what they sent."""
+def sending(args: argparse.Namespace) -> Iterator[Sending]:
+    """``with sending(args) as send: run_tracker(..., sinks=send.sinks)`` - no sinks when no
+    output was asked; logs where the outputs send and, at the end, what they sent (packets,
+    send and encode errors) and keeps the counters in ``send.summary``."""
     sink = output_sink(args)
+    send = Sending([] if sink is None else [sink])
     if sink is None:
-        yield []
+        yield send
         return
     log(f"outputs: {describe(sink)}")
     try:
-        yield [sink]
+        yield send
     finally:
-        report(sink)
+        send.summary = report(sink)

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from app.commands import CommandSpec
-from app.commands._common import emit_json, log
+from app.commands._common import emit_json, log, number_arg, warn
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -16,7 +16,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     cb = csub.add_parser("chessboard", help="OpenCV chessboard calibration of IMAGES")
     cb.add_argument("images", nargs="+", type=Path)
     cb.add_argument("--pattern", default="9x6", help="inner corners COLSxROWS (default 9x6)")
-    cb.add_argument("--square", type=float, default=0.025, help="square size (m)")
+    cb.add_argument("--square", type=number_arg(gt=0, hi=100), default=0.025,
+                    help="square size (m)")
     cb.add_argument("--fix-aspect", action="store_true", help="CALIB_FIX_ASPECT_RATIO")
     cb.add_argument("--out", type=Path, default=None, help="write camera.json here")
     cb.add_argument("--json", action="store_true", help="end with one JSON line")
@@ -24,14 +25,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     dl = csub.add_parser("dlt", help="DLT from a CSV of x,y,z,u,v correspondences (>= 6)")
     dl.add_argument("points", type=Path)
-    dl.add_argument("--outlier-px", type=float, default=3.0, help="outlier residual (px)")
+    dl.add_argument("--outlier-px", type=number_arg(gt=0), default=3.0,
+                    help="outlier residual (px)")
     dl.add_argument("--json", action="store_true", help="end with one JSON line")
     dl.set_defaults(func=_dlt)
 
     ln = csub.add_parser("lines", help="line-based radial distortion from a chessboard image")
     ln.add_argument("images", nargs="+", type=Path)
     ln.add_argument("--pattern", default="9x6", help="inner corners COLSxROWS; 'edges' = LSD")
-    ln.add_argument("--terms", type=int, default=2, help="number of k terms (k3, k5, ...)")
+    ln.add_argument("--terms", type=number_arg(integer=True, lo=1, hi=4), default=2,
+                    help="number of k terms (k3, k5, ...)")
     ln.add_argument("--json", action="store_true", help="end with one JSON line")
     ln.set_defaults(func=_lines)
 
@@ -43,6 +46,8 @@ def _chessboard(args: argparse.Namespace) -> int:
     res = calibrate_chessboard(args.images, parse_pattern(args.pattern), args.square,
                                fix_aspect_ratio=args.fix_aspect)
     c = res.intrinsics
+    for path, why in zip(res.skipped_images, res.skipped_reasons, strict=True):
+        warn(f"{path}: skipped ({why})")
     log(f"{len(res.used_images)} of {len(args.images)} images used; rms {res.rms_px:.3f} px")
     log(f"fx {c.fx:.2f} fy {c.fy:.2f} cx {c.cx:.2f} cy {c.cy:.2f} dist {c.dist_k1k2p1p2k3}")
     if args.out:
@@ -77,25 +82,25 @@ def _dlt(args: argparse.Namespace) -> int:
 
 
 def _lines(args: argparse.Namespace) -> int:
-    import cv2
-
     from engine.errors import CalibrationError
-    from engine.ptz.chessboard import parse_pattern
+    from engine.ptz.chessboard import parse_pattern, read_calibration_image
     from engine.ptz.distortion import (
         estimate_radial_from_lines,
         propose_lines_chessboard,
         propose_lines_edges,
     )
 
+    pattern = None if args.pattern == "edges" else parse_pattern(args.pattern)
     lines = []
     size = None
     for path in args.images:
-        g = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-        if g is None:
-            raise CalibrationError(f"{path}: cannot read image")
-        size = (g.shape[1], g.shape[0])
-        found = (propose_lines_edges(g) if args.pattern == "edges"
-                 else propose_lines_chessboard(g, parse_pattern(args.pattern)))
+        g = read_calibration_image(path)  # missing, truncated, undecodable: one-line error
+        wh = (g.shape[1], g.shape[0])
+        if size is not None and wh != size:
+            raise CalibrationError(f"{path}: size {wh[0]}x{wh[1]} differs from the first "
+                                   f"image's {size[0]}x{size[1]}; give photos of one camera mode")
+        size = wh
+        found = propose_lines_edges(g) if pattern is None else propose_lines_chessboard(g, pattern)
         log(f"{path}: {len(found)} line(s)")
         lines += found
     if not lines or size is None:

@@ -8,7 +8,7 @@ import argparse
 from pathlib import Path
 
 from app.commands import CommandSpec
-from app.commands._common import emit_json, log
+from app.commands._common import emit_json, log, number_arg
 
 PATHS = ("rail", "pan", "handheld", "static")
 FORMATS = ("tum", "realsense")
@@ -23,11 +23,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "SDK's recording layout, with the ground truth on an extra topic")
     p.add_argument(
         "--frames",
-        type=int,
+        type=number_arg(integer=True, lo=1, hi=1_000_000),
         default=None,
         help="number of frames (300; with cycles= in --options: cycles x cycle_s x 30)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--seed", type=number_arg(integer=True, lo=0, hi=2**63 - 1), default=0,
+                   help="random seed (0)")
     p.add_argument("--path", choices=PATHS, default="rail", help="camera path (rail)")
     p.add_argument("--presenter", type=int, choices=(0, 1), default=0, help="walking presenter")
     p.add_argument("--ball", type=int, choices=(0, 1), default=0, help="red target ball")
@@ -42,12 +43,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from engine.errors import SourceError
+    from engine.persist import check_output_dir
     from engine.sources import parse_options
     from engine.sources.synthetic import SyntheticSource
     from engine.studio.export import write_tum_folder
 
     if args.frames is not None and args.frames < 1:
         raise SourceError(f"--frames must be at least 1, got {args.frames}")
+    check_output_dir(args.out, error=SourceError, label="OUT", kind="TUM folder")
     if args.format == "realsense":
         from engine.sources.realsense_bag import check_bag_path
 

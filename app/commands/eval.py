@@ -13,16 +13,16 @@ from pathlib import Path
 from typing import Any
 
 from app.commands import CommandSpec
-from app.commands._common import emit_json, log
+from app.commands._common import emit_json, log, number_arg
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gt", required=True, metavar="GT", help="ground truth (TUM or OTB boxes)")
     p.add_argument("--est", required=True, metavar="EST", help="estimate (same format as GT)")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
-    p.add_argument("--max-diff", type=float, default=0.02, metavar="S",
+    p.add_argument("--max-diff", type=number_arg(gt=0, hi=1e6), default=0.02, metavar="S",
                    help="max timestamp difference for association (s, default 0.02 as TUM)")
-    p.add_argument("--delta", type=float, default=1.0, metavar="S",
+    p.add_argument("--delta", type=number_arg(gt=0, hi=1e6), default=1.0, metavar="S",
                    help="RPE pose-pair spacing in seconds (default 1.0)")
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from app.commands import CommandSpec
+from app.commands._common import number_arg
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -21,7 +22,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--quit-after",
         metavar="N",
-        type=_positive_int,
+        type=number_arg(integer=True, lo=1),
         default=None,
         help="quit after N processed frames (or when the run ends first)",
     )
@@ -46,13 +47,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_false",
         help="process frames as fast as the tracker can",
     )
-
-
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
-    return value
 
 
 def _run(args: argparse.Namespace) -> int:

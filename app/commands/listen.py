@@ -13,18 +13,21 @@ import socket
 import time
 
 from app.commands import CommandSpec
-from app.commands._common import emit_json, log
+from app.commands._common import emit_json, log, number_arg, port_arg
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--freed", type=int, default=None, metavar="PORT", help="FreeD UDP port")
-    p.add_argument("--opentrackio", type=int, default=None, metavar="PORT",
+    p.add_argument("--freed", type=port_arg(), default=None, metavar="PORT",
+                   help="FreeD UDP port")
+    p.add_argument("--opentrackio", type=port_arg(), default=None, metavar="PORT",
                    help="OpenTrackIO UDP port")
     p.add_argument("--group", default=None, metavar="ADDR",
                    help="join this multicast group for OpenTrackIO (e.g. 239.135.1.1)")
     p.add_argument("--bind", default="127.0.0.1", help="local address (default 127.0.0.1)")
-    p.add_argument("--seconds", type=float, default=5.0, help="listen this long (default 5)")
-    p.add_argument("--count", type=int, default=None, help="stop after N samples")
+    p.add_argument("--seconds", type=number_arg(gt=0, hi=1e7), default=5.0,
+                   help="listen this long (default 5)")
+    p.add_argument("--count", type=number_arg(integer=True, lo=1), default=None,
+                   help="stop after N samples")
     p.add_argument("--quiet", action="store_true", help="only the summary")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
 
@@ -82,15 +85,13 @@ def _run(args: argparse.Namespace) -> int:
                         sample = reasm.feed(data)
                         if sample is None:
                             continue
+                        pose = ot.sample_pose(sample)
                         counts["opentrackio"] += 1
-                        tr = (sample.get("transforms") or [{}])[-1]
-                        t, r = tr.get("translation", {}), tr.get("rotation", {})
-                        line = (f"OpenTrackIO #{sample.get('timing', {}).get('sequenceNumber')}"
-                                f" {sample.get('tracker', {}).get('status')}: "
-                                f"x {t.get('x', 0):.3f} y {t.get('y', 0):.3f} "
-                                f"z {t.get('z', 0):.3f} m, pan {r.get('pan', 0):.2f} "
-                                f"tilt {r.get('tilt', 0):.2f} roll {r.get('roll', 0):.2f} deg")
-                except (StudioTrackError, TypeError, ValueError, AttributeError) as exc:
+                        line = (f"OpenTrackIO #{pose.sequence_number} {pose.status}: "
+                                f"x {pose.x_m:.3f} y {pose.y_m:.3f} z {pose.z_m:.3f} m, "
+                                f"pan {pose.pan_deg:.2f} tilt {pose.tilt_deg:.2f} "
+                                f"roll {pose.roll_deg:.2f} deg")
+                except StudioTrackError as exc:
                     counts["errors"] += 1
                     last_error = str(exc)
                     line = f"bad {socks[s]} packet: {exc}"
@@ -99,7 +100,8 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         for s in socks:
             s.close()
-    result = {**counts, "last_error": last_error, "bind": args.bind}
+    result = {**counts, "last_error": last_error, "bind": args.bind,
+              "opentrackio_dropped_samples": reasm.dropped}
     if args.json:
         emit_json(result)
     else:

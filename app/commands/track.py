@@ -22,12 +22,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from app.commands import CommandSpec
-from app.commands._common import emit_json, log
+from app.commands._common import emit_json, log, number_arg, run_inputs, warn
+from app.commands._interrupt import StopSignals
 from app.commands._outputs_cli import add_output_arguments, sending
 from engine.errors import TrackerError
 
 if TYPE_CHECKING:
     from engine.loop import FrameRecord
+    from engine.sources.base import StopOnError
     from engine.tracking_run import TrackingRun
 
 _DISCOVERY_ERROR: list[str] = []
@@ -41,12 +43,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="FILE", default=None,
                    help="output file: TUM trajectory for pose trackers, x,y,w,h lines for boxes")
     p.add_argument("--json", action="store_true", help="end with one JSON line of results")
-    p.add_argument("--max-frames", type=int, default=None, metavar="N",
+    p.add_argument("--max-frames", type=number_arg(integer=True, lo=1), default=None, metavar="N",
                    help="stop after N frames")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
                    help="set a field of the tracker's parameters (repeatable)")
     p.add_argument("--list-params", action="store_true",
                    help="print the chosen tracker's parameters with defaults and exit")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out even if it is a read-only file")
     _add_tracker_arguments(p)
     add_output_arguments(p)
 
@@ -109,41 +113,81 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         raise TrackerError("track needs --out FILE (the trajectory or box file to write)")
-    out_path = Path(args.out)
-    if out_path.is_dir():
-        raise TrackerError(f"--out {out_path}: is a folder, expected a file name")
-    if not out_path.parent.exists():
-        raise TrackerError(f"--out {out_path}: folder {out_path.parent} does not exist")
+    from engine.persist import check_output_file
+    from engine.sources.base import StopOnError
 
+    out_path = check_output_file(args.out, error=TrackerError, label="--out", force=args.force)
     source = open_source(args.source)
-    tracker = spec.factory(params)
-    total = len(source) if args.max_frames is None else min(len(source), args.max_frames)
-    log(f"tracking {getattr(source, 'name', args.source)} with {name} "
-        f"({total or 'unknown number of'} frames)")
-    every = max(1, (total or 100) // 10)
+    with source:
+        check_output_file(out_path, error=TrackerError, label="--out", force=args.force,
+                          inputs=run_inputs(args, source))
+        tracker = spec.factory(params)
+        total = len(source) if args.max_frames is None else min(len(source), args.max_frames)
+        log(f"tracking {getattr(source, 'name', args.source)} with {name} "
+            f"({total or 'unknown number of'} frames)")
+        every = max(1, (total or 100) // 10)
 
-    def progress(rec: FrameRecord) -> None:
-        if (rec.seq + 1) % every == 0:
-            log(f"  frame {rec.seq + 1}/{total or '?'}  {rec.result.state.value}"
-                f"  {rec.process_ms:.1f} ms")
+        def progress(rec: FrameRecord) -> None:
+            if (rec.seq + 1) % every == 0:
+                log(f"  frame {rec.seq + 1}/{total or '?'}  {rec.result.state.value}"
+                    f"  {rec.process_ms:.1f} ms")
 
-    with source, sending(args) as sinks:  # --freed / --opentrackio: pose-output sink
-        tr_run = run_tracker(source, tracker, output=spec.output, max_frames=args.max_frames,
-                             on_record=progress, sinks=sinks)
+        guarded = StopOnError(source)  # a read error mid-run keeps the frames before it
+        # --freed / --opentrackio: pose-output sink; Ctrl-C / SIGTERM: stop after this frame
+        with StopSignals("tracking") as stop, sending(args) as send:
+            tr_run = run_tracker(guarded, tracker, output=spec.output,
+                                 max_frames=args.max_frames, on_record=progress,
+                                 sinks=send.sinks, should_stop=stop)
+        notes = list(source.end_notes())
     if len(tr_run) == 0:
+        if guarded.error is not None:
+            raise guarded.error
+        if stop():
+            raise KeyboardInterrupt
         raise TrackerError(f"{args.source}: the source yielded no frames")
     _write_output(out_path, tr_run)
-    log(f"wrote {out_path}")
+    partial = stop() or guarded.error is not None
+    reason = stop.reason or (f"source error after {len(tr_run)} frames: {guarded.error}"
+                             if guarded.error is not None else "")
+    log(f"wrote {out_path}" + (f" (partial: {len(tr_run)} frames, {reason})" if partial else ""))
     summary = summarize(tr_run)
     summary["source"] = args.source
     summary["out"] = str(out_path)
+    summary["partial"] = partial
+    summary["stop_reason"] = reason
+    if send.summary is not None:
+        summary["outputs"] = send.summary
+    input_stats = _input_stats(guarded)
+    if input_stats:
+        summary["input"] = input_stats
+    summary["warnings"] = notes
     for note in summary.get("notes", []):
         log(f"note: {note}")
+    for note in notes:
+        warn(note)
     if args.json:
         emit_json(summary)
     else:
         print(json.dumps(summary, indent=2))
+    if guarded.error is not None:
+        raise type(guarded.error)(f"{guarded.error} (the {len(tr_run)} frames before it were "
+                                  f"written to {out_path}, flagged partial)")
+    if send.summary is not None and send.summary.get("nothing_sent"):
+        raise TrackerError(f"outputs: nothing could be sent ({send.summary['problem']}); the "
+                           f"trajectory was written to {out_path}")
+    if stop() and not source.live:
+        return stop.exit_code
     return 0
+
+
+def _input_stats(source: StopOnError) -> dict[str, object] | None:
+    """Counters of skipped input (beacon logs, live UDP readings) as of the last frame."""
+    last = source.last_frame
+    for payload in () if last is None else last.payloads:
+        stats = getattr(payload, "input_stats", None)
+        if stats:
+            return dict(stats)
+    return None
 
 
 def _write_output(path: Path, tr_run: TrackingRun) -> None:

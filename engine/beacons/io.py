@@ -31,11 +31,18 @@ import socket
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from engine.errors import SourceError
 from engine.persist import atomic_write_json, atomic_write_text
+from engine.validate import number
 
 LAYOUT_VERSION = 1
+#: beacon positions, ranges and timestamps accepted from files and datagrams
+POSITION_MAX_M = 1e6
+RANGE_MAX_M = 1e6
+TIMESTAMP_MAX_S = 1e12
+_POS: dict[str, Any] = {"lo": -POSITION_MAX_M, "hi": POSITION_MAX_M, "error": SourceError}
 
 
 # ---------------------------------------------------------------------------- layouts
@@ -49,11 +56,17 @@ def load_layout(path: str | Path) -> dict[str, tuple[float, float]]:
         try:
             obj = json.loads(text)
             items = obj["beacons"]
-            layout = {str(b["id"]): (float(b["x_m"]), float(b["y_m"])) for b in items}
+            layout = {
+                str(b["id"]): (number(b["x_m"], f"{p}: beacon {b['id']!r} x_m", **_POS),
+                               number(b["y_m"], f"{p}: beacon {b['id']!r} y_m", **_POS))
+                for b in items
+            }
+            version = number(obj.get("version", LAYOUT_VERSION), f"{p}: 'version'",
+                             integer=True, lo=0, hi=10**6, error=SourceError)
         except (ValueError, KeyError, TypeError, RecursionError) as exc:
             raise SourceError(f"{p}: not a beacon layout JSON ({exc!s})") from None
-        if int(obj.get("version", LAYOUT_VERSION)) > LAYOUT_VERSION:
-            raise SourceError(f"{p}: layout version {obj.get('version')} is newer than supported")
+        if version > LAYOUT_VERSION:
+            raise SourceError(f"{p}: layout version {version} is newer than supported")
     else:
         layout = {}
         for lineno, row in enumerate(csv.reader(io.StringIO(text)), start=1):
@@ -68,6 +81,8 @@ def load_layout(path: str | Path) -> dict[str, tuple[float, float]]:
                 if lineno == 1:  # header
                     continue
                 raise SourceError(f"{p}:{lineno}: x_m/y_m are not numbers: {row}") from None
+            for value, axis in zip(layout[cells[0]], ("x_m", "y_m"), strict=True):
+                number(value, f"{p}:{lineno}: beacon {cells[0]!r} {axis}", **_POS)
     if not layout:
         raise SourceError(f"{p}: beacon layout has no beacons")
     for bid, (x, y) in layout.items():
@@ -220,22 +235,25 @@ def parse_datagram(
     known = set(known_ids) if known_ids is not None else None
     try:
         obj = json.loads(data.decode("utf-8"))
-        t = float(obj["timestamp_s"])
+        if not isinstance(obj, dict):
+            raise ValueError(f"expected a JSON object, got {type(obj).__name__}")
+        t = number(obj["timestamp_s"], "timestamp_s", lo=-TIMESTAMP_MAX_S, hi=TIMESTAMP_MAX_S,
+                   error=ValueError)
         raw = obj["ranges_m"]
-        if not isinstance(raw, dict) or not math.isfinite(t):
-            raise ValueError("ranges_m must be an object and timestamp_s finite")
-    except (ValueError, KeyError, TypeError, UnicodeDecodeError, RecursionError) as exc:
+        if not isinstance(raw, dict):
+            raise ValueError("ranges_m must be an object")
+    except KeyError as exc:
+        stats.note("malformed", f"udp: malformed datagram (no {exc!s})")
+        return None
+    except (ValueError, TypeError, UnicodeDecodeError, RecursionError) as exc:
         stats.note("malformed", f"udp: malformed datagram ({exc!s})")
         return None
     ranges: dict[str, float] = {}
     for bid, v in raw.items():
         try:
-            r = float(v)
-        except (TypeError, ValueError):
-            stats.note("malformed", f"udp: range of {bid!r} is not a number")
-            continue
-        if not _valid_range(r):
-            stats.note("malformed", f"udp: range of {bid!r} is invalid: {r}")
+            r = number(v, f"range of {bid!r}", lo=0.0, hi=RANGE_MAX_M, error=ValueError)
+        except ValueError as exc:
+            stats.note("malformed", f"udp: {exc}")
             continue
         if known is not None and bid not in known:
             stats.unknown_id_names.add(str(bid))
@@ -247,8 +265,9 @@ def parse_datagram(
     gt_xy = None
     if isinstance(gt, list | tuple) and len(gt) == 2:
         try:
-            gt_xy = (float(gt[0]), float(gt[1]))
-        except (TypeError, ValueError):
+            gt_xy = (number(gt[0], "gt_xy", error=ValueError),
+                     number(gt[1], "gt_xy", error=ValueError))
+        except ValueError:
             gt_xy = None
     stats.steps += 1
     return RangeStep(t, ranges, gt_xy)
@@ -265,9 +284,10 @@ class UdpRangeListener:
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self._sock.bind((host, int(port)))
-        except OSError as exc:
+        except (OSError, OverflowError) as exc:
             self._sock.close()
-            raise SourceError(f"udp {host}:{port}: cannot bind ({exc.strerror})") from None
+            why = getattr(exc, "strerror", None) or exc
+            raise SourceError(f"udp {host}:{port}: cannot bind ({why})") from None
         self.host, self.port = self._sock.getsockname()[:2]
 
     def receive(self, timeout_s: float = 0.2) -> RangeStep | None:

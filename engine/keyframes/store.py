@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
-from engine.errors import CalibrationError, TrackerError
+from engine.errors import TrackerError
 from engine.geometry import invert, rotation_angle_rad, rotation_angle_rad_batch
 from engine.persist import read_json_file
 
@@ -315,22 +315,11 @@ class KeyframeStore:
 
 
 def _intrinsics_from(d: object, where: Path) -> Intrinsics:
+    from engine.camera import intrinsics_from_json
+
     if not isinstance(d, dict):
         raise KeyframeStoreError(f"{where}: 'intrinsics' must be an object")
-    try:
-        dist = d.get("distortion", [0.0] * 5)
-        return Intrinsics(
-            fx=float(d["fx"]),
-            fy=float(d["fy"]),
-            cx=float(d["cx"]),
-            cy=float(d["cy"]),
-            width=int(d["width"]),
-            height=int(d["height"]),
-            dist_k1k2p1p2k3=tuple(float(v) for v in dist),  # type: ignore[arg-type]
-            depth_scale=float(d.get("depth_scale", 5000.0)),
-        )
-    except (KeyError, TypeError, ValueError, CalibrationError) as exc:
-        raise KeyframeStoreError(f"{where}: bad intrinsics ({exc!s})") from None
+    return intrinsics_from_json(d, f"{where}: intrinsics", KeyframeStoreError)
 
 
 def same_camera(a: Intrinsics, b: Intrinsics, tol: float = 1e-6) -> bool:

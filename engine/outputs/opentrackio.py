@@ -294,46 +294,117 @@ def decode_payload(payload: bytes, encoding: int) -> dict[str, Any]:
 class Reassembler:
     """Collects segments per sequence number and returns complete samples.
 
-    At most ``max_pending`` incomplete samples are kept (oldest dropped) and each one at most
-    ``max_bytes``, so a hostile stream cannot grow memory without bound.
+    At most ``max_pending`` incomplete samples are kept (oldest dropped) and each one holds
+    at most ``max_bytes`` of segment data (counted as received: overlapping or repeated
+    segments count every time, so a hostile stream cannot make one sample hold more); a
+    segment that would exceed it drops that sample and raises. Memory stays below
+    ``max_pending * max_bytes`` whatever arrives. :attr:`dropped` counts abandoned samples.
     """
 
     def __init__(self, max_pending: int = 8, max_bytes: int = 1 << 20) -> None:
         self._pending: dict[tuple[int, int], dict[int, bytes]] = {}
+        self._held: dict[tuple[int, int], int] = {}
         self._total: dict[tuple[int, int], int] = {}
         self.max_pending = max_pending
         self.max_bytes = max_bytes
+        self.dropped = 0
+
+    @property
+    def held_bytes(self) -> int:
+        """Segment bytes held for incomplete samples now (all of them together)."""
+        return sum(len(seg) for parts in self._pending.values() for seg in parts.values())
+
+    def _drop(self, key: tuple[int, int]) -> None:
+        if self._pending.pop(key, None) is not None:
+            self.dropped += 1
+        self._held.pop(key, None)
+        self._total.pop(key, None)
 
     def feed(self, packet: bytes) -> dict[str, Any] | None:
         """Add one datagram; returns the decoded sample when it completes one."""
         head, seg = parse_packet(packet)
         key = (head.sequence, head.encoding)
         if head.segment_offset == 0 and head.last_segment:
-            self._pending.pop(key, None)
+            self._drop(key)
             return decode_payload(seg, head.encoding)
-        if head.segment_offset + len(seg) > self.max_bytes:
-            raise OpenTrackIOError(f"segment end {head.segment_offset + len(seg)} exceeds limit")
+        end = head.segment_offset + len(seg)
+        held = self._held.get(key, 0) + len(seg)
+        if end > self.max_bytes or held > self.max_bytes:
+            self._drop(key)
+            raise OpenTrackIOError(
+                f"sample #{head.sequence}: segments exceed the {self.max_bytes}-byte limit "
+                f"(segment end {end}, {held} bytes received); sample dropped"
+            )
         parts = self._pending.setdefault(key, {})
         parts[head.segment_offset] = seg
+        self._held[key] = held
         if head.last_segment:
-            self._total[key] = head.segment_offset + len(seg)
+            self._total[key] = end
         while len(self._pending) > self.max_pending:
-            old = next(iter(self._pending))
-            self._pending.pop(old)
-            self._total.pop(old, None)
+            self._drop(next(iter(self._pending)))
         total = self._total.get(key)
-        if total is None:
+        if total is None or key not in self._pending:
             return None
         buf = bytearray()
         for off in sorted(parts):
             if off != len(buf):
-                return None  # gap: wait for the missing segment
+                return None  # gap (or overlap): wait for the missing segment
             buf += parts[off]
         if len(buf) != total:
             return None
         self._pending.pop(key, None)
+        self._held.pop(key, None)
         self._total.pop(key, None)
         return decode_payload(bytes(buf), head.encoding)
+
+
+@dataclass(frozen=True, slots=True)
+class DecodedPose:
+    """The camera transform and status of a received sample (what ``listen`` prints)."""
+
+    sequence_number: int | None
+    status: str
+    x_m: float
+    y_m: float
+    z_m: float
+    pan_deg: float
+    tilt_deg: float
+    roll_deg: float
+
+
+def sample_pose(sample: Mapping[str, Any]) -> DecodedPose:
+    """The last transform of a decoded sample, every number validated (finite, in range);
+    a malformed sample (``transforms`` not a list of objects, a value that is no number,
+    ``1e400``, a 400-digit integer) raises :class:`OpenTrackIOError`."""
+    from engine.validate import number
+
+    transforms = sample.get("transforms", [])
+    if not isinstance(transforms, list) or not all(isinstance(t, dict) for t in transforms):
+        raise OpenTrackIOError("'transforms' must be a list of objects")
+    tr = transforms[-1] if transforms else {}
+    t, r = tr.get("translation", {}), tr.get("rotation", {})
+    if not isinstance(t, dict) or not isinstance(r, dict):
+        raise OpenTrackIOError("transform 'translation'/'rotation' must be objects")
+    timing = sample.get("timing", {})
+    tracker = sample.get("tracker", {})
+    if not isinstance(timing, dict) or not isinstance(tracker, dict):
+        raise OpenTrackIOError("'timing'/'tracker' must be objects")
+    seq = timing.get("sequenceNumber")
+
+    def num(d: Mapping[str, Any], key: str, where: str) -> float:
+        return number(d.get(key, 0.0), f"{where}.{key}", lo=-1e9, hi=1e9,
+                      error=OpenTrackIOError)
+
+    return DecodedPose(
+        sequence_number=None if seq is None else number(
+            seq, "timing.sequenceNumber", integer=True, lo=0, hi=2**32,
+            error=OpenTrackIOError),
+        status=str(tracker.get("status", ""))[:40],
+        x_m=num(t, "x", "translation"), y_m=num(t, "y", "translation"),
+        z_m=num(t, "z", "translation"),
+        pan_deg=num(r, "pan", "rotation"), tilt_deg=num(r, "tilt", "rotation"),
+        roll_deg=num(r, "roll", "rotation"),
+    )
 
 
 def decode_datagrams(packets: Sequence[bytes]) -> list[dict[str, Any]]:

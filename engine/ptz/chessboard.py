@@ -22,6 +22,8 @@ class ChessboardResult:
     per_view_rms_px: tuple[float, ...]
     used_images: tuple[str, ...]
     skipped_images: tuple[str, ...]
+    #: why each of ``skipped_images`` was left out (same order)
+    skipped_reasons: tuple[str, ...] = ()
 
     def to_json_dict(self) -> dict[str, object]:
         c = self.intrinsics
@@ -34,7 +36,9 @@ class ChessboardResult:
             "rms_px": self.rms_px,
             "per_view_rms_px": list(self.per_view_rms_px),
             "n_used": len(self.used_images),
+            "used_images": list(self.used_images),
             "skipped": list(self.skipped_images),
+            "skipped_reasons": list(self.skipped_reasons),
         }
 
 
@@ -62,29 +66,42 @@ def calibrate_chessboard(
     ``fix_aspect_ratio`` reproduces OpenCV's sample flag (CALIB_FIX_ASPECT_RATIO, the flag
     stored in ``left_intrinsics.yml``).
     """
+    import math
+
     import cv2
 
-    if square_m <= 0:
-        raise CalibrationError(f"square size must be positive, got {square_m}")
+    if not (math.isfinite(square_m) and square_m > 0):
+        raise CalibrationError(f"square size must be a positive number of metres, got {square_m}")
     cols, rows = pattern_cols_rows
     obj = np.zeros((rows * cols, 3), np.float32)
     obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square_m
-    obj_pts, img_pts, used, skipped = [], [], [], []
-    size: tuple[int, int] | None = None
-    for p in images:
-        path = Path(p)
-        gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-        if gray is None:
-            raise CalibrationError(f"{path}: cannot read image")
-        if size is None:
-            size = (gray.shape[1], gray.shape[0])
-        elif size != (gray.shape[1], gray.shape[0]):
-            raise CalibrationError(f"{path}: size {gray.shape[1]}x{gray.shape[0]} != {size}")
-        ok, corners = cv2.findChessboardCorners(
-            gray, (cols, rows), cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-        )
+    grays = [(str(p), read_calibration_image(p)) for p in images]
+    size = _common_size([g.shape[1::-1] for _, g in grays])
+    obj_pts, img_pts, used, skipped, reasons = [], [], [], [], []
+    min_side = 4 * (max(cols, rows) + 1)
+    for path, gray in grays:
+        wh = (gray.shape[1], gray.shape[0])
+        why = ""
+        if wh == size[::-1] and wh != size:
+            why = (f"portrait {wh[0]}x{wh[1]} in a {size[0]}x{size[1]} set, and no EXIF "
+                   "orientation says which way it was turned")
+        elif wh != size:
+            why = f"size {wh[0]}x{wh[1]} differs from the set's {size[0]}x{size[1]}"
+        elif min(wh) < min_side:
+            why = f"{wh[0]}x{wh[1]} px is too small for a {cols}x{rows} chessboard"
+        if why:
+            skipped.append(path)
+            reasons.append(why)
+            continue
+        try:
+            ok, corners = cv2.findChessboardCorners(
+                gray, (cols, rows), cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+            )
+        except cv2.error:
+            ok = False
         if not ok:
-            skipped.append(str(path))
+            skipped.append(path)
+            reasons.append(f"no {cols}x{rows} chessboard found")
             continue
         corners = cv2.cornerSubPix(
             gray, corners, (11, 11), (-1, -1),
@@ -92,10 +109,13 @@ def calibrate_chessboard(
         )
         obj_pts.append(obj)
         img_pts.append(corners)
-        used.append(str(path))
-    if len(used) < 3 or size is None:
+        used.append(path)
+    if len(used) < 3:
+        named = (f"{Path(p).name}: {r}" for p, r in zip(skipped, reasons, strict=True))
+        detail = f" (skipped: {'; '.join(named)})"
         raise CalibrationError(
             f"chessboard {cols}x{rows} found in {len(used)} of {len(images)} image(s); need >= 3"
+            + (detail[:400] if skipped else "")
         )
     flags = cv2.CALIB_FIX_ASPECT_RATIO if fix_aspect_ratio else 0
     K0 = np.eye(3)
@@ -112,7 +132,36 @@ def calibrate_chessboard(
         width=size[0], height=size[1],
         dist_k1k2p1p2k3=tuple(float(v) for v in d),  # type: ignore[arg-type]
     )
-    return ChessboardResult(cam, float(rms), tuple(per_view), tuple(used), tuple(skipped))
+    return ChessboardResult(cam, float(rms), tuple(per_view), tuple(used), tuple(skipped),
+                            tuple(reasons))
+
+
+def read_calibration_image(path: str | Path) -> NDArray[np.uint8]:
+    """A calibration photo as 8-bit grey in the sensor's own layout: EXIF orientation is
+    ignored (a phone's portrait shot stays as the sensor saw it); a missing, empty, truncated
+    or undecodable file raises CalibrationError naming it."""
+    import cv2
+
+    from engine.errors import SourceError
+    from engine.sources.images import read_image
+
+    try:
+        return read_image(path, cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION)
+    except SourceError as exc:
+        raise CalibrationError(str(exc)) from None
+
+
+def _common_size(sizes: Sequence[tuple[int, int]]) -> tuple[int, int]:
+    """The most common (width, height) of the set, counting a portrait shot as its landscape
+    size (so 20 landscape + 3 portrait photos give the landscape size)."""
+    from collections import Counter
+
+    if not sizes:
+        raise CalibrationError("no calibration images given")
+    counts = Counter((max(w, h), min(w, h)) for w, h in sizes)
+    land = counts.most_common(1)[0][0]
+    exact = Counter(tuple(s) for s in sizes if tuple(s) in (land, land[::-1]))
+    return max(exact, key=lambda s: (exact[s], s[0] >= s[1]))  # type: ignore[return-value]
 
 
 def read_opencv_yaml_intrinsics(path: str | Path) -> dict[str, object]:

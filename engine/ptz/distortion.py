@@ -213,7 +213,12 @@ def propose_lines_chessboard(
     """Rows and columns of chessboard inner corners: straight in the world. [] if not found."""
     import cv2
 
-    ok, corners = cv2.findChessboardCorners(gray, pattern_cols_rows)
+    if min(gray.shape[:2]) < 4 * (max(pattern_cols_rows) + 1):
+        return []  # too small to hold the pattern (OpenCV's detector asserts on tiny images)
+    try:
+        ok, corners = cv2.findChessboardCorners(gray, pattern_cols_rows)
+    except cv2.error:
+        return []
     if not ok:
         return []
     corners = cv2.cornerSubPix(

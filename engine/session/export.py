@@ -21,10 +21,23 @@ CSV_COLUMNS = ("seq", "index", "timestamp_s", "state", "tx", "ty", "tz", "qx", "
                "process_ms")
 
 
+def finite_pose(rec: dict[str, Any]) -> np.ndarray | None:
+    """The record's pose, or None when it has none or it is not finite (a damaged record):
+    exports never write ``nan``."""
+    T = pose_of(rec)
+    return T if T is not None and bool(np.all(np.isfinite(T))) else None
+
+
+def nonfinite_poses(records: Sequence[dict[str, Any]]) -> list[int]:
+    """``seq`` of the records whose pose is present but not finite (left out of exports)."""
+    return [int(r["seq"]) for r in records
+            if pose_of(r) is not None and finite_pose(r) is None]
+
+
 def _rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for r in records:
-        T = pose_of(r)
+        T = finite_pose(r)
         if T is None:
             continue
         tum = tum_from_T(T)
@@ -62,7 +75,7 @@ def csv_text(records: Sequence[dict[str, Any]]) -> str:
 def json_text(records: Sequence[dict[str, Any]]) -> str:
     out = []
     for r in records:
-        T = pose_of(r)
+        T = finite_pose(r)
         out.append({"seq": r["seq"], "timestamp_s": r["timestamp_s"], "state": r.get("state"),
                     "T_world_cam": None if T is None else np.asarray(T).tolist()})
     return json.dumps({"format": "studiotrack-trajectory", "version": 1, "poses": out},

@@ -12,13 +12,12 @@ from typing import Any
 import numpy as np
 
 from engine.camera import Intrinsics
-from engine.errors import CalibrationError
 from engine.frames import Frame
 from engine.persist import read_json_file
 from engine.session import FORMAT_NAME, FORMAT_VERSION, SessionError
 from engine.sources.base import Source
 
-STATUSES = ("recording", "complete", "stopped")
+STATUSES = ("recording", "complete", "stopped", "interrupted")
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,27 +76,9 @@ def parse_index(obj: Any, where: str = "index.json") -> SessionIndex:
     if intr_d is not None:
         if not isinstance(intr_d, dict):
             raise SessionError(f"{where}: 'intrinsics' must be an object")
-        try:
-            dist = intr_d.get("distortion", [0.0] * 5)
-            if not isinstance(dist, list) or len(dist) != 5:
-                raise SessionError(f"{where}: intrinsics distortion must be 5 numbers")
-            vals = [intr_d[k] for k in ("fx", "fy", "cx", "cy", "width", "height",
-                                        "depth_scale")] + list(dist)
-            if any(isinstance(v, bool) or not isinstance(v, int | float) for v in vals):
-                raise SessionError(f"{where}: intrinsics values must be numbers")
-            if any(not isinstance(intr_d[k], int) for k in ("width", "height")):
-                raise SessionError(f"{where}: intrinsics width/height must be integers")
-            intr = Intrinsics(
-                fx=float(intr_d["fx"]), fy=float(intr_d["fy"]), cx=float(intr_d["cx"]),
-                cy=float(intr_d["cy"]), width=int(intr_d["width"]),
-                height=int(intr_d["height"]),
-                dist_k1k2p1p2k3=tuple(float(v) for v in dist),  # type: ignore[arg-type]
-                depth_scale=float(intr_d["depth_scale"]),
-            )
-        except KeyError as exc:
-            raise SessionError(f"{where}: intrinsics missing {exc}") from None
-        except (CalibrationError, OverflowError) as exc:
-            raise SessionError(f"{where}: intrinsics invalid ({exc})") from None
+        from engine.camera import intrinsics_from_json
+
+        intr = intrinsics_from_json(intr_d, f"{where} intrinsics", SessionError)
     params = trk.get("params", {})
     if not isinstance(params, dict):
         raise SessionError(f"{where}: tracker params must be an object")
@@ -163,6 +144,28 @@ def read_records(session_dir: str | Path) -> list[dict[str, Any]]:
             raise SessionError(f"{path}: line {i + 1} is not a frame record")
         out.append(rec)
     return out
+
+
+def records_problems(index: SessionIndex, records: list[dict[str, Any]]) -> list[str]:
+    """Why ``records`` cannot be the whole recording the index describes (empty: they can).
+
+    Checked: the count the finished index states, frame numbers 0..N-1 each exactly once.
+    A replay may only claim identity when this is empty.
+    """
+    problems = []
+    if index.status != "recording" and index.frames_recorded != len(records):
+        problems.append(f"index.json says {index.frames_recorded} frame(s) were recorded, "
+                        f"records.jsonl holds {len(records)}")
+    seqs = [int(r["seq"]) for r in records]
+    if seqs != list(range(len(seqs))):
+        from collections import Counter
+
+        counts = Counter(seqs)
+        dup = next((q for q, c in counts.items() if c > 1), None)
+        gap = next((i for i in range(len(seqs)) if i not in counts), None)
+        what = f"frame {dup} appears twice" if dup is not None else f"frame {gap} is missing"
+        problems.append(f"records.jsonl: frames are not numbered 0..{len(seqs) - 1} ({what})")
+    return problems
 
 
 def pose_of(rec: dict[str, Any]) -> np.ndarray | None:

@@ -9,6 +9,12 @@ Failure: any write error (disk full, permissions, device gone) stops recording. 
 rewritten (best effort) with ``status: "stopped"`` and the reason, records written so far stay
 readable (one flushed JSON line per frame, images written before their line), and
 :class:`RecordingStopped` carries a one-line message naming the file and the error.
+
+Interruption: a recording whose ``should_stop`` turned true before the source ended (Ctrl-C,
+SIGTERM, the operator's Stop) is finished with ``status: "interrupted"`` and the reason
+(``should_stop.reason`` when the flag has one); a source that fails mid-way is finished as
+``"interrupted"`` with the source's error. ``"complete"`` means the source ran to its end
+(or to ``max_frames``).
 """
 
 from __future__ import annotations
@@ -123,6 +129,7 @@ class SessionRecorder:
             "created_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             "status": "recording",
             "stop_reason": "",
+            "partial": False,
             "source": {
                 "spec": source_spec,
                 "name": getattr(source, "name", ""),
@@ -216,13 +223,17 @@ class SessionRecorder:
                 self._stop(f"{self.dir / 'index.json'}: {exc.strerror or exc}")
                 raise RecordingStopped(self._message()) from None
 
-    def finish(self, outputs_stats: dict[str, Any] | None = None) -> None:
-        """Close the records and write the final index (status complete unless stopped)."""
+    def finish(self, outputs_stats: dict[str, Any] | None = None,
+               interrupted: str = "") -> None:
+        """Close the records and write the final index: status ``complete``, or
+        ``interrupted`` with the reason ``interrupted`` gives, or ``stopped`` (write error)."""
         if not self._records.closed:
             with contextlib.suppress(OSError):
                 self._records.close()
         if not self.stopped:
-            self._index["status"] = "complete"
+            self._index["status"] = "interrupted" if interrupted else "complete"
+            self._index["stop_reason"] = interrupted
+            self._index["partial"] = bool(interrupted)
         try:
             if outputs_stats is not None:
                 from engine.persist import atomic_write_json
@@ -244,6 +255,7 @@ class SessionRecorder:
         self.stop_reason = reason
         self._index["status"] = "stopped"
         self._index["stop_reason"] = reason
+        self._index["partial"] = True
         with contextlib.suppress(OSError):
             self._records.flush()
         with contextlib.suppress(OSError):  # the reader still works from records.jsonl
@@ -294,16 +306,19 @@ class RecorderSink(SinkBase):
 
     ``outputs_config`` (an :class:`engine.outputs.sender.OutputConfig`) adds the studio pose
     and the target names to each record; ``outputs_stats`` gives the sender statistics
-    stored in ``outputs.json`` when the recording is finished.
+    stored in ``outputs.json`` when the recording is finished; ``interrupted`` says why the
+    run ended before its source did (the index then says ``"interrupted"`` and the reason).
     """
 
     name = "recorder"
 
     def __init__(self, recorder: SessionRecorder, *, outputs_config: Any = None,
-                 outputs_stats: Callable[[], dict[str, Any] | None] | None = None) -> None:
+                 outputs_stats: Callable[[], dict[str, Any] | None] | None = None,
+                 interrupted: Callable[[], str] | None = None) -> None:
         self.recorder = recorder
         self.outputs_config = outputs_config
         self.outputs_stats = outputs_stats
+        self.interrupted = interrupted
         self.finished = False
 
     def on_record(self, record: FrameRecord) -> None:
@@ -321,7 +336,8 @@ class RecorderSink(SinkBase):
             return
         self.finished = True
         stats = self.outputs_stats() if self.outputs_stats is not None else None
-        self.recorder.finish(stats)
+        reason = self.interrupted() if self.interrupted is not None else ""
+        self.recorder.finish(stats, interrupted=reason)
 
     def health(self) -> SinkHealth:
         rec = self.recorder
@@ -357,6 +373,7 @@ def record_session(
     on exit; a write error stops the run and raises :class:`RecordingStopped`.
     """
     from engine.loop import run_tracking
+    from engine.sources.base import StopOnError
 
     sinks: list[Any] = []
     stats_fn: Callable[[], dict[str, Any] | None] | None = None
@@ -364,10 +381,20 @@ def record_session(
         sinks.append(outputs)
         stats_fn = _stats_of(outputs)
 
+    guarded = StopOnError(recorder.normalizing(source))
+
+    def interrupted() -> str:
+        """Why the recording ended before its source did ('' when it did not)."""
+        if guarded.error is not None:
+            return f"source error: {guarded.error}"
+        if should_stop():
+            return str(getattr(should_stop, "reason", "") or "stop requested")
+        return ""
+
     sink = RecorderSink(recorder, outputs_config=getattr(outputs, "config", None),
-                        outputs_stats=stats_fn)
+                        outputs_stats=stats_fn, interrupted=interrupted)
     sinks.append(sink)
-    records = run_tracking(recorder.normalizing(source), tracker, sinks=sinks,
+    records = run_tracking(guarded, tracker, sinks=sinks,
                            should_stop=lambda: should_stop() or recorder.stopped,
                            max_frames=max_frames)
     try:
@@ -380,6 +407,8 @@ def record_session(
         sink.close()
     if recorder.stopped:
         raise RecordingStopped(recorder._message())
+    if guarded.error is not None:
+        raise guarded.error
 
 
 SINKS = (SinkSpec("recorder", "records a replayable session folder", RecorderSink),)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from engine.session import SessionError
-from engine.session.reader import SessionSource, pose_of
+from engine.session.reader import SessionSource, pose_of, records_problems
 
 
 @dataclass(frozen=True, slots=True)
@@ -24,6 +24,8 @@ class ReplayResult:
     mismatches: int
     max_abs_diff: float
     params_restored: bool
+    #: why the recording cannot be compared whole (count, numbering); identical is then False
+    integrity: tuple[str, ...] = ()
 
 
 def params_from_json(params_cls: type, data: dict[str, Any]) -> Any:
@@ -71,6 +73,15 @@ def replay_session(
     from engine.loop import run_tracking
 
     src = SessionSource(session_dir)
+    if not src.records:
+        src.close()
+        missing = not (Path(session_dir) / "records.jsonl").exists()
+        raise SessionError(
+            f"{Path(session_dir) / 'records.jsonl'}: "
+            + ("missing" if missing else "holds no frame records")
+            + "; there is nothing to replay or compare"
+        )
+    problems = records_problems(src.index, src.records)
     restored = True
     if tracker is None:
         tracker, restored = make_tracker_for(src.index)
@@ -108,6 +119,11 @@ def replay_session(
                     max_diff = float("inf")
     finally:
         src.close()
-    if not out and src.records:
+    if not out:
         raise SessionError(f"{session_dir}: replay produced no frames")
-    return ReplayResult(out, len(out), mismatches == 0, mismatches, max_diff, restored)
+    expected = len(src.records) if max_frames is None else min(len(src.records), max_frames)
+    if len(out) != expected and not should_stop():
+        problems.append(f"replayed {len(out)} frame(s) of the {expected} recorded")
+    identical = mismatches == 0 and not problems
+    return ReplayResult(out, len(out), identical, mismatches, max_diff, restored,
+                        tuple(problems))

@@ -46,6 +46,21 @@ class Source(abc.ABC):
         close the source's own loop (e.g. the simulated pan-tilt head obeying the tracker)."""
         return ()
 
+    def input_paths(self) -> tuple[Path, ...]:
+        """Files this source reads (a folder: everything in it); outputs must not be one.
+
+        The default names the conventional attributes (``path``, ``groundtruth_path``);
+        folder sources add their lists and image folders.
+        """
+        found = (getattr(self, a, None) for a in ("path", "groundtruth_path"))
+        return tuple(Path(p) for p in found if isinstance(p, str | Path) and str(p))
+
+    def end_notes(self) -> tuple[str, ...]:
+        """Warnings about how the last :meth:`frames` pass ended or what it skipped (a
+        truncated video: which frame was the last good one; skipped readings), for the
+        caller to show and put in its JSON. Empty when the source ended normally."""
+        return ()
+
     def __iter__(self) -> Iterator[Frame]:
         return self.frames()
 
@@ -90,3 +105,59 @@ def parse_options(text: str) -> dict[str, str]:
             raise SourceError(f"source option {item!r} is not key=value")
         out[key.strip()] = value.strip()
     return out
+
+
+class StopOnError(Source):
+    """Wraps a source so that an error while reading (a truncated file at frame 500, a
+    device gone) ends the frames instead of the run: the frames read before it are kept
+    and the error is stored in :attr:`error`, for the caller to save the partial result
+    first and report the error after."""
+
+    def __init__(self, inner: Source) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.nominal_fps = inner.nominal_fps
+        self.live = inner.live
+        self.error: Exception | None = None
+        self.frames_read = 0
+        self.last_frame: Frame | None = None
+
+    @property
+    def intrinsics(self) -> Intrinsics | None:
+        return self.inner.intrinsics
+
+    def __len__(self) -> int:
+        return len(self.inner)
+
+    def __getattr__(self, name: str) -> object:  # groundtruth_path, end_notes, ...
+        if name == "inner":
+            raise AttributeError(name)
+        return getattr(self.inner, name)
+
+    def input_paths(self) -> tuple[Path, ...]:
+        return self.inner.input_paths()
+
+    def end_notes(self) -> tuple[str, ...]:
+        return self.inner.end_notes()
+
+    def sinks(self) -> Sequence[Any]:
+        return self.inner.sinks()
+
+    def frames(self) -> Iterator[Frame]:
+        from engine.errors import StudioTrackError
+
+        it = self.inner.frames()
+        while True:
+            try:
+                frame = next(it)
+            except StopIteration:
+                return
+            except (StudioTrackError, OSError) as exc:
+                self.error = exc
+                return
+            self.frames_read += 1
+            self.last_frame = frame
+            yield frame
+
+    def close(self) -> None:
+        self.inner.close()

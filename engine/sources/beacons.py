@@ -16,7 +16,7 @@ Specs (see :func:`open_beacon_source`):
 
 - ``beacons[:layout=paper|FILE,steps=120,speed=0.15,noise=0.1,dropout=0,outliers=0,seed=0,fps=10]``
 - ``beacons-csv:FILE[,layout=FILE,window=0]``
-- ``beacons-udp:[port=9870,host=127.0.0.1,layout=FILE,heartbeat=0.5,idle_timeout=0]``
+- ``beacons-udp:[port=9871,host=127.0.0.1,layout=FILE,heartbeat=0.5,idle_timeout=0]``
 """
 
 from __future__ import annotations
@@ -34,8 +34,10 @@ from engine.camera import Intrinsics
 from engine.errors import ParamsError, SourceError
 from engine.frames import Frame, FramePayload
 from engine.sources.base import Source, SourceSpec
+from engine.validate import number
+from engine.validate import port as validate_port
 
-DEFAULT_UDP_PORT = 9870
+DEFAULT_UDP_PORT = 9871  # 9870 is the presenter robot-control output (engine.presenter.control)
 
 
 def _T_from_xy(xy: Sequence[float] | None) -> np.ndarray | None:
@@ -122,28 +124,26 @@ class BeaconSimSource(Source):
         o = dict(opts)
         lay_opt = o.pop("layout", "paper")
         layout = None if lay_opt in ("", "paper") else load_layout(lay_opt)
-        names = {"steps": ("n_steps", int), "speed": ("speed_m", float),
-                 "noise": ("noise_sigma_m", float), "dropout": ("dropout_prob", float),
-                 "outliers": ("outlier_prob", float), "outlier_max": ("outlier_max_m", float),
-                 "seed": ("seed", int)}
+        names = {"steps": ("n_steps", True), "speed": ("speed_m", False),
+                 "noise": ("noise_sigma_m", False), "dropout": ("dropout_prob", False),
+                 "outliers": ("outlier_prob", False), "outlier_max": ("outlier_max_m", False),
+                 "seed": ("seed", True)}
         kw: dict[str, Any] = {}
         fps = 10.0
         for key, value in o.items():
-            try:
-                if key == "fps":
-                    fps = float(value)
-                elif key in names:
-                    field_name, conv = names[key]
-                    kw[field_name] = conv(value)
-                else:
-                    raise SourceError(
-                        f"beacons source: unknown option {key!r} (known: layout, fps, "
-                        f"{', '.join(names)})"
-                    )
-            except ValueError:
+            what = f"beacons source: option {key}"
+            if key == "fps":
+                fps = number(value, what, gt=0, hi=1e6, error=SourceError, text=True)
+            elif key in names:
+                field_name, integer = names[key]
+                hi = 10**7 if key == "steps" else None
+                kw[field_name] = number(value, what, integer=integer, hi=hi, error=SourceError,
+                                        text=True)
+            else:
                 raise SourceError(
-                    f"beacons source: option {key}={value!r} is not a number"
-                ) from None
+                    f"beacons source: unknown option {key!r} (known: layout, fps, "
+                    f"{', '.join(names)})"
+                )
         try:
             cfg = SimConfig(**kw)
         except ParamsError as exc:
@@ -205,10 +205,8 @@ class BeaconCsvSource(Source):
         if not path:
             raise SourceError("beacons-csv: expected beacons-csv:FILE[,layout=FILE,window=S]")
         layout = load_layout(opts.pop("layout")) if "layout" in opts else None
-        try:
-            window = float(opts.pop("window", "0"))
-        except ValueError:
-            raise SourceError("beacons-csv: window must be a number of seconds") from None
+        window = number(opts.pop("window", "0"), "beacons-csv: window (seconds)", lo=0,
+                        hi=1e7, error=SourceError, text=True)
         if opts:
             raise SourceError(f"beacons-csv: unknown option(s) {sorted(opts)}")
         return cls(path, layout, window)
@@ -255,12 +253,12 @@ class BeaconUdpSource(Source):
 
         o = dict(opts)
         layout = load_layout(o.pop("layout")) if "layout" in o else None
-        try:
-            port = int(o.pop("port", str(DEFAULT_UDP_PORT)))
-            heartbeat = float(o.pop("heartbeat", "0.5"))
-            idle = float(o.pop("idle_timeout", "0"))
-        except ValueError:
-            raise SourceError("beacons-udp: port/heartbeat/idle_timeout must be numbers") from None
+        port = validate_port(o.pop("port", str(DEFAULT_UDP_PORT)), "beacons-udp: port",
+                             error=SourceError)
+        heartbeat = number(o.pop("heartbeat", "0.5"), "beacons-udp: heartbeat", lo=0, hi=3600,
+                           error=SourceError, text=True)
+        idle = number(o.pop("idle_timeout", "0"), "beacons-udp: idle_timeout", lo=0, hi=1e7,
+                      error=SourceError, text=True)
         host = o.pop("host", "127.0.0.1")
         if o:
             raise SourceError(f"beacons-udp: unknown option(s) {sorted(o)}")

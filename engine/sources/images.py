@@ -53,6 +53,12 @@ def _decode(path: Path, flags: int) -> NDArray[np.generic]:
     return image
 
 
+def read_image(path: str | Path, flags: int) -> NDArray[np.uint8]:
+    """An 8-bit image decoded with ``cv2.imdecode`` ``flags`` after the completeness check;
+    SourceError naming the file (missing, empty, truncated, undecodable)."""
+    return np.asarray(_decode(Path(path), flags), dtype=np.uint8)
+
+
 def read_color_bgr(path: str | Path) -> NDArray[np.uint8]:
     """An 8-bit 3-channel BGR image (grey files are expanded); SourceError naming the file."""
     path = Path(path)

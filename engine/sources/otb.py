@@ -145,6 +145,9 @@ class OtbSource(Source):
         #: box lines beyond the last image (ignored)
         self.extra_box_lines = max(0, len(boxes) - len(images))
 
+    def input_paths(self) -> tuple[Path, ...]:
+        return (*super().input_paths(), *sorted({Path(p).parent for p in self._images}))
+
     @property
     def intrinsics(self) -> Intrinsics | None:
         return None

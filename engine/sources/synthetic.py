@@ -54,11 +54,15 @@ PATHS = ("rail", "pan", "handheld", "static")
 PRESENTER_MODES = ("walk", "still", "leave")
 
 
-def _int(lo: int, hi: int | None = None) -> Callable[[str], int]:
+#: the largest integer option accepted (frame counts, seeds): beyond it len() overflows
+_INT_MAX = 10**9
+
+
+def _int(lo: int, hi: int = _INT_MAX) -> Callable[[str], int]:
     def parse(s: str) -> int:
         v = int(s)
-        if v < lo or (hi is not None and v > hi):
-            raise ValueError(f"expected an integer in [{lo}, {hi if hi is not None else 'inf'}]")
+        if v < lo or v > hi:
+            raise ValueError(f"expected an integer in [{lo}, {hi}]")
         return v
 
     return parse

@@ -279,6 +279,12 @@ class TumSource(Source):
         if len(times) > 1:
             self.nominal_fps = float(1.0 / np.median(np.diff(times)))
 
+    def input_paths(self) -> tuple[Path, ...]:
+        lists = [self.folder / n for n in ("rgb.txt", "depth.txt", "camera.json")]
+        folders = {p.rgb_path.parent for p in self._pairs}
+        folders |= {p.depth_path.parent for p in self._pairs if p.depth_path is not None}
+        return (*super().input_paths(), *lists, *sorted(folders))
+
     @staticmethod
     def _load_intrinsics(folder: Path) -> Intrinsics:
         cam_json = folder / "camera.json"
@@ -296,7 +302,15 @@ class TumSource(Source):
     def _check_files_exist(list_path: Path, entries: list[TumListEntry]) -> None:
         folder = list_path.parent
         for e in entries:
-            if not (folder / e.rel_path).is_file():
+            try:
+                exists = (folder / e.rel_path).is_file()
+            except (OSError, ValueError) as exc:  # name too long, NUL byte...
+                why = getattr(exc, "strerror", None) or exc
+                raise SourceError(
+                    f"{list_path}:{e.line_no}: image name {e.rel_path[:60]!r}... cannot be "
+                    f"used ({why})"
+                ) from None
+            if not exists:
                 raise SourceError(
                     f"{list_path}:{e.line_no}: image {e.rel_path} does not exist in {folder}"
                 )

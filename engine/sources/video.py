@@ -64,6 +64,7 @@ class VideoSource(Source):
                 f"intrinsics say {intrinsics.width}x{intrinsics.height}"
             )
         self._intrinsics = intrinsics
+        self._end_note = ""
 
     @property
     def intrinsics(self) -> Intrinsics | None:
@@ -72,8 +73,31 @@ class VideoSource(Source):
     def __len__(self) -> int:
         return self._len
 
+    def end_notes(self) -> tuple[str, ...]:
+        return (self._end_note,) if self._end_note else ()
+
+    def _check_end(self, decoded: int, last_t: float) -> None:
+        """After the last decodable frame: did the file end early (truncated copy)?
+
+        The container's frame count is only an upper estimate (files with dropped frames
+        announce more than they hold), so the test is on time: the last frame must lie
+        within two frame periods (or 2 %) of the announced duration."""
+        self._end_note = ""
+        if self._len <= 0 or decoded >= self._len:
+            return
+        duration = self._len / self.nominal_fps
+        slack = max(2.0 / self.nominal_fps, 0.02 * duration)
+        if decoded == 0 or last_t < duration - slack:
+            last = (f"frame {decoded - 1} at {last_t:.3f} s" if decoded else "none")
+            self._end_note = (
+                f"{self.path}: video ended after {decoded} of the {self._len} frames its "
+                f"header announces ({duration:.1f} s); the file looks truncated or damaged; "
+                f"last good frame: {last}"
+            )
+
     def frames(self) -> Iterator[Frame]:
         cap = _open_capture(self.path)
+        self._end_note = ""
         try:
             use_pos = True
             last_t = -math.inf
@@ -81,6 +105,7 @@ class VideoSource(Source):
             while True:
                 ok, image = cap.read()
                 if not ok or image is None:
+                    self._check_end(index, last_t)
                     return
                 t_s = float(cap.get(cv2.CAP_PROP_POS_MSEC)) / 1000.0
                 if use_pos and (not math.isfinite(t_s) or t_s <= last_t):

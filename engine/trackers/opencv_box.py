@@ -68,11 +68,20 @@ class OpenCVBoxTracker:
                 return TrackResult(state=TrackState.INITIALIZING, message="no initial box")
             H, W = img.shape[:2]
             x, y, w, h = (float(v) for v in box)
-            x0, y0 = max(round(x), 0), max(round(y), 0)
-            w_i = max(min(round(w), W - x0), 2)
-            h_i = max(min(round(h), H - y0), 2)
+            roi = _clip_box(x, y, w, h, W, H)
+            if roi is None:
+                raise TrackerError(
+                    f"{self.kind} tracker: initial box x,y,w,h = {x:g},{y:g},{w:g},{h:g} does "
+                    f"not overlap the {W}x{H} image of frame {frame.index} by 2x2 px or more"
+                )
             self._cv = _create(self.kind)
-            self._cv.init(img, (x0, y0, w_i, h_i))
+            try:
+                self._cv.init(img, roi)
+            except cv2.error as exc:
+                self._cv = None
+                msg = " ".join(str(exc).split())[-160:]
+                raise TrackerError(f"{self.kind} tracker: cannot start on the box {roi} of "
+                                   f"frame {frame.index} ({msg})") from None
             self._box = (x, y, w, h)
             return self._result(TrackState.TRACKING)
         ok, box = self._cv.update(img)
@@ -86,6 +95,21 @@ class OpenCVBoxTracker:
                            overlay=Overlay(boxes_xywh=(self._box,), box_labels=(self.kind,)),
                            message="" if state is TrackState.TRACKING else
                            f"OpenCV {self.kind.upper()} reports a failure")
+
+
+def _clip_box(x: float, y: float, w: float, h: float, W: int, H: int
+              ) -> tuple[int, int, int, int] | None:
+    """The part of box ``x,y,w,h`` inside a ``W x H`` image, in whole pixels (None when
+    less than 2x2 px of it is inside, or a value is not finite)."""
+    import math
+
+    if not all(math.isfinite(v) for v in (x, y, w, h)):
+        return None
+    x0, y0 = max(round(x), 0), max(round(y), 0)
+    x1, y1 = min(x0 + round(w), W), min(y0 + round(h), H)
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return None
+    return (x0, y0, x1 - x0, y1 - y0)
 
 
 def _factory(kind: str) -> Any:

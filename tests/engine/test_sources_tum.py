@@ -418,7 +418,7 @@ def test_no_depth_partner_at_all(tmp_path: Path) -> None:
         ("[1, 2, 3]", "expected a JSON object"),
         (
             '{"fx": 30, "fy": 30, "cx": 1, "cy": 1, "width": 32, "height": "x"}',
-            "'height' must be a number",
+            "'height' must be an integer",
         ),
         (
             '{"fx": 30, "fy": 30, "cx": 1, "cy": 1, "width": 32, "height": 24, "distortion": [0]}',
@@ -426,7 +426,7 @@ def test_no_depth_partner_at_all(tmp_path: Path) -> None:
         ),
         (
             '{"fx": -30, "fy": 30, "cx": 1, "cy": 1, "width": 32, "height": 24}',
-            "focal lengths must be positive",
+            "'fx' must be > 0",
         ),
     ],
 )
