@@ -56,6 +56,15 @@ class SourceFiles(FramePayload):
     depth_path: str | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class Heartbeat(FramePayload):
+    """Marks a frame without data: a live source had nothing new for ``waited_s`` and yields
+    it only so that the engine loop can poll its stop flag. Trackers hold their last result;
+    runs, trajectories and estimates leave heartbeat frames out."""
+
+    waited_s: float = 0.0
+
+
 def _now() -> float:
     return time.monotonic()
 

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from engine.errors import EvaluationError
 from engine.evaluation.trajectory import Trajectory, read_tum
+from engine.frames import Heartbeat
 from engine.loop import FrameRecord, run_tracking
 from engine.sources.base import Source
 from engine.trackers.base import Tracker, TrackState
@@ -100,6 +101,8 @@ def run_tracker(
     for rec in run_tracking(source, tracker, should_stop=should_stop, max_frames=max_frames,
                             sinks=sinks):
         res, fr = rec.result, rec.frame
+        if fr.payload(Heartbeat) is not None:
+            continue  # a live source's "nothing new": not a frame of the run
         stamps.append(float(fr.timestamp_s))
         states.append(res.state)
         poses.append(nan44 if res.T_world_cam is None else np.asarray(res.T_world_cam, float))

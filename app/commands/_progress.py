@@ -6,6 +6,8 @@ import sys
 import time
 from typing import TextIO
 
+from engine.progress import log
+
 
 class ProgressBar:
     """``[########............]  48/120 frames  1.6 s  (2 skipped)``, redrawn in place.
@@ -20,6 +22,7 @@ class ProgressBar:
         self.total = total if total else None
         self.unit = unit
         self.width = width
+        self._own_stream = stream is not None
         self.stream = stream or sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.every = max(1, (self.total // 10) if self.total else every)
@@ -47,7 +50,10 @@ class ProgressBar:
                 self.stream.flush()
                 self._shown = True
         elif n % self.every == 0 or done:
-            print(self.text(n, extra), file=self.stream, flush=True)
+            if self._own_stream:
+                print(self.text(n, extra), file=self.stream, flush=True)
+            else:  # a progress line like every other (engine.progress), not an error line
+                log(self.text(n, extra))
 
     def close(self) -> None:
         if self.tty and self._shown:

@@ -17,8 +17,10 @@ Live UDP (bound to 127.0.0.1 by default): one JSON object per datagram, one time
 
     {"timestamp_s": 12.345, "ranges_m": {"A": 14.1, "B": 21.7}}
 
-optionally with ``"gt_xy": [x, y]`` (ground truth, for simulators). Readings of beacons not
-in the step are treated as missing. Malformed datagrams / readings are counted the same way.
+optionally with ``"gt_xy": [x, y]`` (ground truth, for simulators). ``timestamp_s`` (the
+sender's clock) may be left out: the source then stamps readings with their receive time.
+Readings of beacons not in the step are treated as missing. Malformed datagrams / readings
+are counted the same way.
 """
 
 from __future__ import annotations
@@ -115,7 +117,7 @@ def save_layout(path: str | Path, layout: Mapping[str, Sequence[float]]) -> None
 class RangeStep:
     """The readings of one time step."""
 
-    timestamp_s: float
+    timestamp_s: float | None  # None: a live reading without the sender's time
     ranges_m: Mapping[str, float]
     gt_xy: tuple[float, float] | None = None
 
@@ -131,6 +133,13 @@ class InputStats:
     unknown_ids: int = 0
     duplicates: int = 0
     out_of_order: int = 0
+    #: live only: empty frames while nothing arrived (never part of the estimate)
+    heartbeats: int = 0
+    #: live only: sender timestamps ignored because the stream started without them
+    ignored_timestamps: int = 0
+    #: live only: "sender" (readings' own timestamp_s) or "receive" (arrival time), fixed
+    #: by the first reading; "" before it
+    clock: str = ""
     unknown_id_names: set[str] = field(default_factory=set)
     first_errors: list[str] = field(default_factory=list)
 
@@ -148,6 +157,9 @@ class InputStats:
             "unknown_ids": self.unknown_ids,
             "duplicates": self.duplicates,
             "out_of_order": self.out_of_order,
+            "heartbeats": self.heartbeats,
+            "ignored_timestamps": self.ignored_timestamps,
+            "clock": self.clock,
             "unknown_id_names": sorted(self.unknown_id_names),
             "first_errors": list(self.first_errors),
         }
@@ -237,8 +249,9 @@ def parse_datagram(
         obj = json.loads(data.decode("utf-8"))
         if not isinstance(obj, dict):
             raise ValueError(f"expected a JSON object, got {type(obj).__name__}")
-        t = number(obj["timestamp_s"], "timestamp_s", lo=-TIMESTAMP_MAX_S, hi=TIMESTAMP_MAX_S,
-                   error=ValueError)
+        raw_t = obj.get("timestamp_s")
+        t = None if raw_t is None else number(raw_t, "timestamp_s", lo=-TIMESTAMP_MAX_S,
+                                              hi=TIMESTAMP_MAX_S, error=ValueError)
         raw = obj["ranges_m"]
         if not isinstance(raw, dict):
             raise ValueError("ranges_m must be an object")

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from types import MappingProxyType
 from typing import Any
 
@@ -32,7 +32,7 @@ import numpy as np
 
 from engine.camera import Intrinsics
 from engine.errors import ParamsError, SourceError
-from engine.frames import Frame, FramePayload
+from engine.frames import Frame, FramePayload, Heartbeat
 from engine.sources.base import Source, SourceSpec
 from engine.validate import number
 from engine.validate import port as validate_port
@@ -272,22 +272,51 @@ class BeaconUdpSource(Source):
         return 0
 
     def frames(self) -> Iterator[Frame]:
+        """Readings as they arrive, on one clock per source: the sender's ``timestamp_s``
+        when the first reading carries one, else the receive time (seconds since the source
+        started) - never both. A reading not after the previous one (out of order, late) is
+        counted in ``input_stats.out_of_order`` and skipped; a sender-clocked stream's
+        reading without a timestamp is counted as malformed. While nothing arrives,
+        heartbeat frames (no readings, a :class:`engine.frames.Heartbeat` payload, the last
+        reading's time) let the engine loop poll its stop flag; they are not readings."""
+        stats = self.listener.stats
         index = 0
-        last_data = time.monotonic()
+        t0 = last_data = time.monotonic()
+        last_t = -math.inf
         while True:
             step = self.listener.receive(self.heartbeat_s if self.heartbeat_s > 0 else 0.5)
             now = time.monotonic()
-            stats = self.listener.stats.as_dict()
             if step is None:
                 if self.idle_timeout_s > 0 and now - last_data > self.idle_timeout_s:
                     return
                 if self.heartbeat_s > 0:  # empty frame: lets the loop poll its stop flag
-                    yield _frame(index, now, {}, None, self._layout, None, stats)
+                    stats.heartbeats += 1
+                    frame = _frame(index, last_t if math.isfinite(last_t) else 0.0, {}, None,
+                                   self._layout, None, stats.as_dict())
+                    yield replace(
+                        frame, payloads=(*frame.payloads, Heartbeat(now - last_data)))
                     index += 1
                 continue
             last_data = now
-            yield _frame(index, step.timestamp_s, step.ranges_m, step.gt_xy, self._layout, None,
-                         stats)
+            if not stats.clock:
+                stats.clock = "sender" if step.timestamp_s is not None else "receive"
+            if stats.clock == "sender":
+                if step.timestamp_s is None:
+                    stats.note("malformed", "udp: reading without timestamp_s in a stream "
+                               "stamped by its sender: skipped")
+                    continue
+                t = step.timestamp_s
+            else:
+                if step.timestamp_s is not None:
+                    stats.ignored_timestamps += 1
+                t = now - t0
+            if t <= last_t:
+                stats.note("out_of_order", f"udp: reading at {t:.6f} s is not after the "
+                           f"previous one ({last_t:.6f} s): skipped")
+                continue
+            last_t = t
+            yield _frame(index, t, step.ranges_m, step.gt_xy, self._layout, None,
+                         stats.as_dict())
             index += 1
 
     def close(self) -> None:

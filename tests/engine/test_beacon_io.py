@@ -88,7 +88,7 @@ def test_datagram_parser_counts_bad_messages() -> None:
     assert dict(ok.ranges_m) == {"A": 3.0}
     assert ok.gt_xy == (1.0, 2.0)
     assert parse_datagram(b"{not json", PAPER_LAYOUT, stats) is None
-    assert parse_datagram(b'{"ranges_m": {}}', PAPER_LAYOUT, stats) is None
+    assert parse_datagram(b'{"timestamp_s": 1.0}', PAPER_LAYOUT, stats) is None
     assert stats.malformed == 3
     assert stats.unknown_ids == 1
 
