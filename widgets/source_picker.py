@@ -1,14 +1,16 @@
-"""Source picker: built-in studio (with options), folder, video file or camera -> a spec string.
+"""Source picker: built-in studio (with options), folder, video file, webcam, depth camera or
+RealSense recording -> a spec string.
 
 The spec strings are those of :func:`engine.sources.open_source`:
 ``synthetic:frames=600,seed=3,presenter=1,path=rail``, a TUM/OTB folder path, a video file path,
-``camera:N``. The picker does not open anything; the engine thread does (errors come back
-through the bridge).
+``camera:N``, ``realsense:serial=…``, a ``.bag`` path. The picker does not open anything; the
+engine thread does (errors come back through the bridge). Connected depth cameras are listed
+(serial, model) when the "Depth camera" kind is chosen and on Refresh, not at start-up.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from PySide6.QtCore import QMargins, QPoint, QRect, QSize, QStringListModel, Qt, Signal, Slot
@@ -32,6 +34,7 @@ from PySide6.QtWidgets import (
 
 STUDIO_PATHS = ("rail", "pan", "handheld", "static")
 VIDEO_FILTER = "Video files (*.mp4 *.avi *.mov *.mkv *.m4v);;All files (*)"
+BAG_FILTER = "RealSense recordings (*.bag);;All files (*)"
 
 
 class SourceKind:
@@ -39,6 +42,8 @@ class SourceKind:
     FOLDER = "folder"
     VIDEO = "video"
     CAMERA = "camera"
+    DEPTH = "depth"
+    BAG = "bag"
 
 
 KIND_TITLES = {
@@ -46,7 +51,18 @@ KIND_TITLES = {
     SourceKind.FOLDER: "Folder (TUM / OTB)",
     SourceKind.VIDEO: "Video file",
     SourceKind.CAMERA: "Camera",
+    SourceKind.DEPTH: "Depth camera",
+    SourceKind.BAG: "Recording (.bag)",
 }
+
+
+def _list_depth_cameras() -> list[tuple[str, str]]:
+    """(spec, label) of each connected RealSense camera, through the vendor SDK."""
+    from engine.sources.realsense import list_devices
+
+    return [(d.spec, f"{d.model or 'RealSense'} · {d.serial}" + (f" (USB {d.usb})" if d.usb
+                                                                 else ""))
+            for d in list_devices()]
 
 
 def parse_synthetic(spec: str) -> dict[str, str]:
@@ -170,9 +186,11 @@ class _PathEditor(QWidget):
 
     edited = Signal()
 
-    def __init__(self, placeholder: str, pick_dir: bool, parent: QWidget | None = None) -> None:
+    def __init__(self, placeholder: str, pick_dir: bool, parent: QWidget | None = None,
+                 file_filter: str = VIDEO_FILTER) -> None:
         super().__init__(parent)
         self.pick_dir = pick_dir
+        self.file_filter = file_filter
         self.line = QLineEdit()
         self.line.setPlaceholderText(placeholder)
         self.line.setClearButtonEnabled(True)
@@ -198,7 +216,7 @@ class _PathEditor(QWidget):
         if self.pick_dir:
             path = QFileDialog.getExistingDirectory(self, "Choose a TUM or OTB folder", start)
         else:
-            path, _ = QFileDialog.getOpenFileName(self, "Choose a video file", start, VIDEO_FILTER)
+            path, _ = QFileDialog.getOpenFileName(self, "Choose a file", start, self.file_filter)
         if path:
             self.line.setText(path)
             self.edited.emit()
@@ -209,8 +227,15 @@ class SourcePicker(QWidget):
 
     spec_changed = Signal(str)
 
-    def __init__(self, parent: QWidget | None = None) -> None:
+    def __init__(
+        self,
+        parent: QWidget | None = None,
+        *,
+        list_depth_cameras: Callable[[], list[tuple[str, str]]] = _list_depth_cameras,
+    ) -> None:
         super().__init__(parent)
+        self._list_depth_cameras = list_depth_cameras
+        self._listed = False
         self.kind_box = QComboBox()
         for kind, title in KIND_TITLES.items():
             self.kind_box.addItem(title, kind)
@@ -266,7 +291,17 @@ class SourcePicker(QWidget):
         self.camera_spin.setPrefix("camera ")
         self.camera_spin.setToolTip("OpenCV camera index")
         self.camera_page = _row(self.camera_spin)
-        for page in (self.studio_page, self.folder_edit, self.video_edit, self.camera_page):
+        # depth camera (RealSense, listed through its SDK) / recording
+        self.depth_box = QComboBox()
+        self.depth_box.setMinimumWidth(220)
+        self.depth_box.setToolTip("Connected RealSense depth cameras (model · serial)")
+        self.depth_refresh = QPushButton("Refresh")
+        self.depth_refresh.setToolTip("List the connected depth cameras again")
+        self.depth_page = _row(self.depth_box, self.depth_refresh, stretch_last=False)
+        self.bag_edit = _PathEditor("RealSense recording (.bag)", pick_dir=False,
+                                    file_filter=BAG_FILTER)
+        for page in (self.studio_page, self.folder_edit, self.video_edit, self.camera_page,
+                     self.depth_page, self.bag_edit):
             self.stack.addWidget(page)
 
         layout = QHBoxLayout(self)
@@ -286,8 +321,11 @@ class SourcePicker(QWidget):
             self.folder_edit.edited,
             self.video_edit.edited,
             self.camera_spin.valueChanged,
+            self.depth_box.currentIndexChanged,
+            self.bag_edit.edited,
         ):
             sig.connect(self._emit)
+        self.depth_refresh.clicked.connect(self.refresh_depth_cameras)
 
         self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Fixed)
 
@@ -333,7 +371,34 @@ class SourcePicker(QWidget):
             return self.folder_edit.line.text().strip()
         if kind == SourceKind.VIDEO:
             return self.video_edit.line.text().strip()
+        if kind == SourceKind.DEPTH:
+            return str(self.depth_box.currentData() or "realsense")
+        if kind == SourceKind.BAG:
+            return self.bag_edit.line.text().strip()
         return f"camera:{self.camera_spin.value()}"
+
+    @Slot()
+    def refresh_depth_cameras(self) -> None:
+        """List the connected depth cameras again (keeps the chosen one if still there)."""
+        current = self.depth_box.currentData()
+        self.depth_box.blockSignals(True)
+        try:
+            self.depth_box.clear()
+            try:
+                cams = self._list_depth_cameras()
+            except Exception as exc:  # the SDK failing must not take the window down
+                cams = []
+                self.depth_box.setToolTip(f"cannot list depth cameras: {exc}")
+            for spec, label in cams:
+                self.depth_box.addItem(label, spec)
+            if not cams:
+                self.depth_box.addItem("no depth camera connected", "realsense")
+            idx = self.depth_box.findData(current) if current else -1
+            self.depth_box.setCurrentIndex(max(idx, 0))
+        finally:
+            self.depth_box.blockSignals(False)
+        self._listed = True
+        self._emit()
 
     def set_spec(self, spec: str) -> None:
         """Show ``spec`` (any string :func:`engine.sources.open_source` accepts)."""
@@ -356,6 +421,15 @@ class SourcePicker(QWidget):
             elif kind == "camera":
                 self.camera_spin.setValue(_int_or(rest or "0", 0))
                 self.set_kind(SourceKind.CAMERA)
+            elif kind == "realsense" and "file=" not in rest:
+                if self.depth_box.findData(spec) < 0:
+                    self.depth_box.addItem(spec, spec)
+                self.depth_box.setCurrentIndex(self.depth_box.findData(spec))
+                self._listed = True  # keep what was asked for; Refresh lists the cameras
+                self.set_kind(SourceKind.DEPTH)
+            elif Path(spec).suffix.lower() == ".bag" or kind == "realsense":
+                self.bag_edit.line.setText(spec)
+                self.set_kind(SourceKind.BAG)
             elif Path(spec).suffix.lower() in (".mp4", ".avi", ".mov", ".mkv", ".m4v"):
                 self.video_edit.line.setText(spec)
                 self.set_kind(SourceKind.VIDEO)
@@ -370,11 +444,16 @@ class SourcePicker(QWidget):
         """Offer recently used folders/files for completion."""
         video_suffixes = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
         self.video_edit.set_recent([p for p in paths if p.lower().endswith(video_suffixes)])
-        self.folder_edit.set_recent([p for p in paths if not p.lower().endswith(video_suffixes)])
+        self.bag_edit.set_recent([p for p in paths if p.lower().endswith(".bag")])
+        self.folder_edit.set_recent(
+            [p for p in paths if not p.lower().endswith((*video_suffixes, ".bag"))])
 
     @Slot()
     def _on_kind(self) -> None:
         self.stack.setCurrentIndex(self.kind_box.currentIndex())
+        if self.kind == SourceKind.DEPTH and not self._listed:
+            self.refresh_depth_cameras()  # emits
+            return
         self._emit()
 
     @Slot()

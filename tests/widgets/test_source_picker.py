@@ -66,3 +66,57 @@ def test_cycles_and_cycle_s_replace_frames(picker: SourcePicker) -> None:
     assert "frames=" not in spec
     assert "cycles=10" in spec
     assert "cycle_s=4" in spec
+
+
+def test_depth_cameras_listed_with_serial_and_model(qtbot) -> None:  # type: ignore[no-untyped-def]
+    cams = [("realsense:serial=123", "Intel RealSense D435 · 123 (USB 3.2)"),
+            ("realsense:serial=456", "Intel RealSense D455 · 456 (USB 3.2)")]
+    calls = []
+
+    def lister() -> list[tuple[str, str]]:
+        calls.append(1)
+        return list(cams)
+
+    p = SourcePicker(list_depth_cameras=lister)
+    qtbot.addWidget(p)
+    assert calls == []  # nothing is enumerated at start-up
+    with qtbot.waitSignal(p.spec_changed) as blocker:
+        p.set_kind(SourceKind.DEPTH)
+    assert blocker.args[0] == "realsense:serial=123"
+    assert [p.depth_box.itemText(i) for i in range(p.depth_box.count())] == [c[1] for c in cams]
+    p.depth_box.setCurrentIndex(1)
+    assert p.spec() == "realsense:serial=456"
+    cams.pop(0)  # the first camera unplugged; the chosen one stays chosen
+    p.refresh_depth_cameras()
+    assert p.spec() == "realsense:serial=456"
+    cams.clear()
+    p.refresh_depth_cameras()
+    assert p.depth_box.currentText() == "no depth camera connected"
+    assert p.spec() == "realsense"  # opening it gives the one-line "no camera" error
+
+
+def test_depth_camera_lister_failure_keeps_the_picker(qtbot) -> None:  # type: ignore[no-untyped-def]
+    def broken() -> list[tuple[str, str]]:
+        raise RuntimeError("SDK exploded")
+
+    p = SourcePicker(list_depth_cameras=broken)
+    qtbot.addWidget(p)
+    p.set_kind(SourceKind.DEPTH)
+    assert p.spec() == "realsense"
+    assert "SDK exploded" in p.depth_box.toolTip()
+
+
+def test_bag_and_realsense_specs_round_trip(picker: SourcePicker, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    bag = str(tmp_path / "take1.bag")
+    picker.set_spec(bag)
+    assert picker.kind == SourceKind.BAG
+    assert picker.spec() == bag
+    picker.set_spec(f"realsense:file={bag},realtime=1")
+    assert picker.kind == SourceKind.BAG
+    assert picker.spec() == f"realsense:file={bag},realtime=1"
+    picker.set_spec("realsense:serial=789,width=848,height=480")
+    assert picker.kind == SourceKind.DEPTH
+    assert picker.spec() == "realsense:serial=789,width=848,height=480"
+    picker.set_recent(["/d/tum", "/v/clip.mp4", bag])
+    assert picker.bag_edit._model.stringList() == [bag]
+    assert picker.folder_edit._model.stringList() == ["/d/tum"]
