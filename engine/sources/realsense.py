@@ -479,7 +479,8 @@ class RealSenseSource(Source):
         j = int(np.argmin(np.abs(stamps - t_s)))
         return poses[j].copy() if abs(stamps[j] - t_s) <= GT_MATCH_S else None
 
-    def _frame(self, index: int, raw: RawFrame, t_s: float, skipped: int) -> Frame:
+    def _frame(self, index: int, raw: RawFrame, t_s: float, skipped: int,
+               capture_mono_s: float | None = None) -> Frame:
         if raw.color_bgr.shape[:2] != (self._intrinsics.height, self._intrinsics.width):
             raise SourceError(
                 f"{self.opts.label}: frame {index} is {raw.color_bgr.shape[1]}x"
@@ -488,7 +489,9 @@ class RealSenseSource(Source):
             )
         return Frame(index=index, timestamp_s=t_s, color_bgr=raw.color_bgr,
                      intrinsics=self._intrinsics, depth_m=raw.depth_m,
-                     gt_T_world_cam=self._gt_at(raw.timestamp_s), skipped_before=skipped)
+                     gt_T_world_cam=self._gt_at(raw.timestamp_s), skipped_before=skipped,
+                     capture_mono_s=time.monotonic() if capture_mono_s is None
+                     else capture_mono_s)
 
     def frames(self) -> Iterator[Frame]:
         if self._stream is None:
@@ -567,7 +570,7 @@ class RealSenseSource(Source):
                         t = last_t + period
                     last_t = t
                     self.total_skipped += skipped
-                    yield self._frame(index, raw, t, skipped)
+                    yield self._frame(index, raw, t, skipped, got.arrival_s)  # grab time
                     index += 1
             finally:
                 grabber.stop()

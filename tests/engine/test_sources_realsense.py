@@ -281,6 +281,8 @@ def test_source_faster_than_the_tracker_gives_the_newest_frame_and_counts_skips(
     # the frame taken is the newest (no stale backlog): at most a frame or two behind
     assert max(lags) <= 2, lags
     assert src.total_skipped == sum(skipped)
+    # capture time = when the grabber got the frame, before the tracker took it
+    assert all(r.frame.capture_mono_s <= r.done_mono_s for r in records)
 
 
 @pytest.mark.parametrize("raise_error", [False, True])
