@@ -48,6 +48,8 @@ DEFAULT_FPS = 30
 ALIGN_MODES = ("color", "sdk")
 #: largest gap between a frame's stamp and a ground-truth stamp that still pairs them
 GT_MATCH_S = 5e-4
+#: times a recording is restarted when the SDK dropped its first frame
+MAX_START_RETRIES = 5
 
 
 @dataclass(frozen=True, slots=True)
@@ -453,10 +455,13 @@ class RealSenseSource(Source):
 
             self._gt = read_groundtruth(opts.file)
         self._len = 0 if self.live else self._count_frames()
-        #: frames skipped so far by the newest-frame policy (live only)
+        #: frames skipped so far: by the newest-frame policy (live), or dropped by the SDK
+        #: (gaps in a recording's frame numbers)
         self.total_skipped = 0
         #: times the camera was reopened after a disconnect
         self.reconnects = 0
+        #: times a recording was restarted because the SDK dropped its first frame
+        self.playback_restarts = 0
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -503,11 +508,17 @@ class RealSenseSource(Source):
 
     def _frames_recorded(self) -> Iterator[Frame]:
         # Every frame, in order, as fast as the consumer takes them: reopen to rewind.
+        from engine.sources.realsense_bag import first_color_seq
+
+        assert self.opts.file is not None
         if getattr(self, "_played", False):
             self._reopen_or_raise()
         self._played = True
+        first_seq = first_color_seq(self.opts.file)
         index = 0
         waited = 0.0
+        restarts = 0
+        last_fn: int | None = None
         while True:
             assert self._stream is not None
             try:
@@ -522,7 +533,21 @@ class RealSenseSource(Source):
                     raise SourceError(f"{self.opts.label}: playback delivers no frames")
                 continue
             waited = 0.0
-            yield self._frame(index, raw, raw.timestamp_s, 0)
+            if index == 0 and first_seq is not None and raw.frame_number != first_seq \
+                    and restarts < MAX_START_RETRIES:
+                # The SDK's pipeline now and then drops the first frame of a playback while
+                # its syncer starts (1 in ~10 starts on a loaded machine); start again.
+                restarts += 1
+                self.playback_restarts += 1
+                self._reopen_or_raise()
+                continue
+            # frames missing from the recording's own numbering were dropped by the SDK
+            gap = 0
+            if raw.frame_number is not None and last_fn is not None:
+                gap = max(0, raw.frame_number - last_fn - 1)
+            last_fn = raw.frame_number
+            self.total_skipped += gap
+            yield self._frame(index, raw, raw.timestamp_s, gap)
             index += 1
 
     def _reopen_or_raise(self) -> None:

@@ -321,6 +321,22 @@ def count_color_frames(path: Path) -> int:
         raise SourceError(f"{path}: cannot read the bag ({type(exc).__name__}: {exc})") from None
 
 
+def first_color_seq(path: Path) -> int | None:
+    """Header ``seq`` of the recording's first colour frame (the SDK's frame number)."""
+    from rosbags.rosbag1 import Reader
+
+    store = _typestore()
+    try:
+        with Reader(path) as reader:
+            topic = _color_topic(c.topic for c in reader.connections)
+            conns = [c for c in reader.connections if c.topic == topic]
+            for conn, _t, raw in reader.messages(connections=conns):
+                return int(store.deserialize_ros1(raw, conn.msgtype).header.seq)
+    except Exception as exc:  # rosbags raises its own types for a corrupt bag
+        raise SourceError(f"{path}: cannot read the bag ({type(exc).__name__}: {exc})") from None
+    return None
+
+
 def read_groundtruth(path: Path) -> tuple[F64, F64] | None:
     """Ground truth stored by :func:`write_realsense_bag`: (stamps_s (N,), T_world_cam (N,4,4)).
 

@@ -337,3 +337,54 @@ def test_sdk_missing_gives_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
     from engine.sources.realsense import list_devices
 
     assert list_devices() == []
+
+
+def test_a_first_frame_dropped_by_the_sdk_restarts_the_playback(bag: Path) -> None:
+    _sdk()
+    from engine.sources.realsense import SdkStream
+
+    opened = [0]
+
+    class DropsFirstOnce(SdkStream):
+        """The real SDK stream, losing frame 0 on its first start (as the SDK sometimes does)."""
+
+        def __init__(self, opts: RealSenseOptions) -> None:
+            super().__init__(opts)
+            opened[0] += 1
+            self._drop = opened[0] == 2  # the construction pass opens once, frames() again
+
+        def read(self, timeout_s: float) -> RawFrame | None:
+            raw = super().read(timeout_s)
+            if self._drop and raw is not None and raw.frame_number == 0:
+                self._drop = False
+                return super().read(timeout_s)
+            return raw
+
+    src = RealSenseSource(parse_realsense_options({}, bag), opener=DropsFirstOnce)
+    with src:
+        first = list(src.frames())  # first pass: no reopen, so nothing dropped
+        second = list(src.frames())  # reopened: drops frame 0, restarts, then plays all
+    assert len(first) == N
+    assert len(second) == N
+    assert src.playback_restarts == 1
+    assert [f.skipped_before for f in second] == [0] * N
+
+
+def test_a_frame_dropped_mid_recording_is_counted(bag: Path) -> None:
+    _sdk()
+    from engine.sources.realsense import SdkStream
+
+    class DropsFive(SdkStream):
+        def read(self, timeout_s: float) -> RawFrame | None:
+            raw = super().read(timeout_s)
+            if raw is not None and raw.frame_number == 5:
+                return super().read(timeout_s)
+            return raw
+
+    src = RealSenseSource(parse_realsense_options({}, bag), opener=DropsFive)
+    with src:
+        frames = list(src.frames())
+    assert len(frames) == N - 1
+    assert [f.skipped_before for f in frames].count(1) == 1
+    assert frames[5].skipped_before == 1
+    assert src.total_skipped == 1
