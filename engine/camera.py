@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import SupportsFloat
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +25,17 @@ from numpy.typing import NDArray
 from engine.errors import CalibrationError
 
 F64 = NDArray[np.float64]
+#: Caltech distortion coefficients in OpenCV's order (k1, k2, p1, p2, k3)
+Dist5 = tuple[float, float, float, float, float]
+
+
+def dist5(values: Iterable[SupportsFloat]) -> Dist5:
+    """Five distortion coefficients (k1, k2, p1, p2, k3) as floats; CalibrationError if the
+    count is not five."""
+    v = tuple(float(x) for x in values)
+    if len(v) != 5:
+        raise CalibrationError(f"distortion needs 5 values (k1,k2,p1,p2,k3), got {len(v)}")
+    return v[0], v[1], v[2], v[3], v[4]
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,7 +48,7 @@ class Intrinsics:
     cy: float = field(default=239.5, metadata={"help": "principal point y (px)"})
     width: int = field(default=640, metadata={"help": "image width (px)"})
     height: int = field(default=480, metadata={"help": "image height (px)"})
-    dist_k1k2p1p2k3: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    dist_k1k2p1p2k3: Dist5 = (0.0, 0.0, 0.0, 0.0, 0.0)
     depth_scale: float = field(default=5000.0, metadata={"help": "depth PNG units per metre"})
 
     def __post_init__(self) -> None:
@@ -179,27 +192,27 @@ def intrinsics_from_json(
     if not isinstance(dist, list) or len(dist) != 5:
         raise error(f"{where}: 'distortion' must be a list of 5 numbers")
 
-    def num(key: str, **rule: float) -> float:
-        return number(raw[key], f"{where}: '{key}'", error=error, **rule)  # type: ignore[arg-type]
+    def num(key: str, lo: float | None = None, hi: float | None = None,
+            gt: float | None = None) -> float:
+        return number(raw[key], f"{where}: '{key}'", lo=lo, hi=hi, gt=gt, error=error)
 
     def size(key: str) -> int:
         return number(raw[key], f"{where}: '{key}'", integer=True, lo=1, hi=SIZE_MAX_PX,
                       error=error)
 
-    values = dict(
-        fx=num("fx", gt=0, hi=FOCAL_MAX_PX), fy=num("fy", gt=0, hi=FOCAL_MAX_PX),
-        cx=num("cx", lo=-FOCAL_MAX_PX, hi=FOCAL_MAX_PX),
-        cy=num("cy", lo=-FOCAL_MAX_PX, hi=FOCAL_MAX_PX),
-        width=size("width"), height=size("height"),
-        dist_k1k2p1p2k3=tuple(
-            number(v, f"{where}: 'distortion'[{i}]", lo=-DIST_MAX, hi=DIST_MAX, error=error)
-            for i, v in enumerate(dist)
-        ),
-        depth_scale=number(raw.get("depth_scale", 5000.0), f"{where}: 'depth_scale'", gt=0,
-                           hi=DEPTH_SCALE_MAX, error=error),
+    fx, fy = num("fx", gt=0, hi=FOCAL_MAX_PX), num("fy", gt=0, hi=FOCAL_MAX_PX)
+    cx = num("cx", lo=-FOCAL_MAX_PX, hi=FOCAL_MAX_PX)
+    cy = num("cy", lo=-FOCAL_MAX_PX, hi=FOCAL_MAX_PX)
+    width, height = size("width"), size("height")
+    coeffs = dist5(
+        number(v, f"{where}: 'distortion'[{i}]", lo=-DIST_MAX, hi=DIST_MAX, error=error)
+        for i, v in enumerate(dist)
     )
+    depth_scale = number(raw.get("depth_scale", 5000.0), f"{where}: 'depth_scale'", gt=0,
+                         hi=DEPTH_SCALE_MAX, error=error)
     try:
-        return Intrinsics(**values)  # type: ignore[arg-type]
+        return Intrinsics(fx=fx, fy=fy, cx=cx, cy=cy, width=width, height=height,
+                          dist_k1k2p1p2k3=coeffs, depth_scale=depth_scale)
     except CalibrationError as exc:
         raise error(f"{where}: {exc}") from None
 
@@ -228,7 +241,7 @@ TUM_DEFAULTS: dict[str, Intrinsics] = {
     "freiburg2": Intrinsics(
         520.9, 521.0, 325.1, 249.7, 640, 480, (0.2312, -0.7849, -0.0033, -0.0001, 0.9172), 5000.0
     ),
-    "freiburg3": Intrinsics(535.4, 539.2, 320.1, 247.6, 640, 480, (0.0,) * 5, 5000.0),  # type: ignore[arg-type]
+    "freiburg3": Intrinsics(535.4, 539.2, 320.1, 247.6, 640, 480, (0.0,) * 5, 5000.0),
 }
 
 

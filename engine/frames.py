@@ -19,15 +19,21 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar, overload
 
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.camera import Intrinsics
 
+A = TypeVar("A", bound=np.ndarray[Any, Any])
 
-def readonly(a: np.ndarray | None) -> np.ndarray | None:
+
+@overload
+def readonly(a: A) -> A: ...
+@overload
+def readonly(a: None) -> None: ...
+def readonly(a: np.ndarray[Any, Any] | None) -> np.ndarray[Any, Any] | None:
     """Mark an array read-only so that it can cross threads inside a frozen record."""
     if a is not None and a.flags.writeable:
         a.flags.writeable = False

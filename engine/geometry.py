@@ -16,6 +16,8 @@ accurate for the tiny increments Gauss-Newton produces.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -78,8 +80,8 @@ def so3_exp_batch(w: F64) -> F64:
     small = theta < _SMALL_ANGLE
     t2 = theta * theta
     safe = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(safe) / safe)
-    b = np.where(
+    a: F64 = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(safe) / safe)
+    b: F64 = np.where(
         small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, 2.0 * np.sin(0.5 * safe) ** 2 / (safe * safe)
     )
     W = hat_batch(w)
@@ -105,7 +107,7 @@ def so3_log(R: F64) -> F64:
     if np.pi - theta < 1e-3:
         nnT = (0.5 * (R + R.T) - cos_t * np.eye(3)) / (1.0 - cos_t)
         k = int(np.argmax(np.diag(nnT)))
-        n = nnT[:, k] / np.sqrt(max(nnT[k, k], 1e-15))
+        n: F64 = nnT[:, k] / np.sqrt(max(nnT[k, k], 1e-15))
         n /= np.linalg.norm(n)
         # n and -n give the same n n^T; the antisymmetric part (while not exactly 0) decides.
         if float(np.dot(s, n)) < 0.0:
@@ -144,8 +146,8 @@ def se3_log(T: F64) -> F64:
     return np.concatenate([V_inv @ T[:3, 3], w])
 
 
-def make_T(R: F64, t: F64) -> F64:
-    """4x4 transform from rotation and translation."""
+def make_T(R: F64, t: F64 | Sequence[float]) -> F64:
+    """4x4 transform from rotation and translation (an array or three numbers)."""
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = np.asarray(t, dtype=np.float64).reshape(3)
@@ -245,7 +247,7 @@ def rotation_angle_rad(R: F64) -> float:
 def rotation_angle_rad_batch(R: F64) -> F64:
     """Angle of each rotation of an (N, 3, 3) stack: arccos((trace - 1) / 2), clipped (as
     TUM's evaluation script)."""
-    tr = np.trace(R, axis1=-2, axis2=-1)
+    tr: F64 = np.trace(R, axis1=-2, axis2=-1)
     return np.arccos(np.clip((tr - 1.0) * 0.5, -1.0, 1.0))
 
 
@@ -271,12 +273,12 @@ def pan_tilt_roll_deg(R_world_cam: F64) -> tuple[float, float, float]:
 def R_from_pan_tilt_roll_deg(pan_deg: float, tilt_deg: float, roll_deg: float) -> F64:
     """Inverse of :func:`pan_tilt_roll_deg`."""
     p, t, r = np.radians([pan_deg, tilt_deg, roll_deg])
-    Rz = np.array([[np.cos(p), -np.sin(p), 0], [np.sin(p), np.cos(p), 0], [0, 0, 1]])
-    Rx = np.array([[1, 0, 0], [0, np.cos(t), -np.sin(t)], [0, np.sin(t), np.cos(t)]])
-    Ry = np.array([[np.cos(r), 0, np.sin(r)], [0, 1, 0], [-np.sin(r), 0, np.cos(r)]])
+    Rz: F64 = np.array([[np.cos(p), -np.sin(p), 0], [np.sin(p), np.cos(p), 0], [0, 0, 1]])
+    Rx: F64 = np.array([[1, 0, 0], [0, np.cos(t), -np.sin(t)], [0, np.sin(t), np.cos(t)]])
+    Ry: F64 = np.array([[np.cos(r), 0, np.sin(r)], [0, 1, 0], [-np.sin(r), 0, np.cos(r)]])
     return Rz @ Rx @ Ry @ _R_BASE_ZUP
 
 
 # Columns are the camera axes (x right, y down, z forward) expressed in a z-up world when the
 # camera looks along +y: x_cam = +x_world, y_cam = -z_world, z_cam = +y_world.
-_R_BASE_ZUP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+_R_BASE_ZUP: F64 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])

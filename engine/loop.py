@@ -15,7 +15,7 @@ applied between frames, so a parameter edit takes effect on the next frame.
 from __future__ import annotations
 
 import queue
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Sequence
 
 from engine.pipeline import Pipeline, Sink
 from engine.records import (
@@ -49,7 +49,7 @@ def run_tracking(
     max_frames: int | None = None,
     realtime: bool = False,
     sinks: Sequence[Sink] = (),
-) -> Iterator[FrameRecord]:
+) -> Generator[FrameRecord, None, None]:
     """Track every frame of ``source``; stop cooperatively when ``should_stop()`` is true.
 
     With ``realtime`` the loop paces itself to the source's nominal frame rate (for

@@ -79,7 +79,7 @@ def atomic_write_json(path: Path, obj: Any) -> None:
 def atomic_write_npz(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
     """Compressed npz written atomically; loading uses ``allow_pickle=False``."""
     buf = io.BytesIO()
-    np.savez_compressed(buf, **dict(arrays))
+    np.savez_compressed(buf, allow_pickle=False, **dict(arrays))
     atomic_write_bytes(path, buf.getvalue())
 
 

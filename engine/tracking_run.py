@@ -22,6 +22,7 @@ matches) is null with the reason in ``notes``.
 from __future__ import annotations
 
 import math
+import types
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -310,7 +311,7 @@ def apply_param_overrides(params: Any, items: list[str] | tuple[str, ...]) -> An
             if isinstance(hint, str):  # unresolvable annotation: go by the current value
                 current = getattr(params, key)
                 hint = (
-                    tuple[type(current[0]), ...]  # type: ignore[misc]
+                    types.GenericAlias(tuple, (type(current[0]), ...))  # tuple[T, ...]
                     if isinstance(current, tuple) and current
                     else type(current)
                 )

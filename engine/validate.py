@@ -54,11 +54,15 @@ def _range_text(lo: float | None, hi: float | None, gt: float | None) -> str:
 @overload
 def number(value: object, what: str, *, integer: Literal[True], lo: float | None = ...,
            hi: float | None = ..., gt: float | None = ...,
-           error: type[Exception] = ...) -> int: ...
+           error: type[Exception] = ..., text: bool = ...) -> int: ...
 @overload
 def number(value: object, what: str, *, integer: Literal[False] = ..., lo: float | None = ...,
            hi: float | None = ..., gt: float | None = ...,
-           error: type[Exception] = ...) -> float: ...
+           error: type[Exception] = ..., text: bool = ...) -> float: ...
+@overload
+def number(value: object, what: str, *, integer: bool, lo: float | None = ...,
+           hi: float | None = ..., gt: float | None = ...,
+           error: type[Exception] = ..., text: bool = ...) -> float | int: ...
 def number(
     value: object,
     what: str,
@@ -80,9 +84,9 @@ def number(
     """
     kind = "an integer" if integer else "a number"
     if isinstance(value, str) and text:
-        text = value.strip()
+        s = value.strip()
         try:
-            v: float | int = int(text) if integer and _is_int_text(text) else float(text)
+            v: float | int = int(s) if integer and _is_int_text(s) else float(s)
         except ValueError:
             raise error(f"{what} must be {kind}, got {shown(value)}") from None
     elif isinstance(value, bool) or not isinstance(value, numbers.Real):

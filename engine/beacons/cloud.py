@@ -35,5 +35,5 @@ def liu_west_roughen(x: F64, weights: F64, h: float, rng: np.random.Generator) -
     a = math.sqrt(1.0 - h * h)
     L = np.linalg.cholesky(cov + 1e-12 * np.eye(2))
     z = rng.standard_normal(x.shape)
-    noise = np.einsum("kij,mkj->mki", L, z)
+    noise: F64 = np.einsum("kij,mkj->mki", L, z)
     return a * x + (1.0 - a) * mean[None] + h * noise

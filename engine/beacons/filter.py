@@ -232,8 +232,8 @@ class BeaconSlamFilter:
             if pos is not None:
                 spread = max(p.range_sigma_m, 0.05)
                 self.cam = pos + self.rng.normal(0.0, spread, (self.n_particles, 2))
-        for i in np.flatnonzero(mask & ~self.known):
-            self._init_beacon(int(i), float(ranges[i]))
+        for b in np.flatnonzero(mask & ~self.known):
+            self._init_beacon(int(b), float(ranges[b]))
         self.first_ranges = np.where(mask, ranges, np.nan)
 
     def _predict(self, ranges: F64, mask: B) -> None:

@@ -61,14 +61,15 @@ def range_log_likelihood(
 
 def normalise_log_weights(log_w: F64) -> F64:
     """Normalise weights so they sum to 1 (sec. III.B), stable for very small likelihoods."""
-    w = np.exp(log_w - np.max(log_w))
+    w: F64 = np.exp(log_w - np.max(log_w))
     return w / np.sum(w)
 
 
 def logsumexp_rows(x: F64) -> F64:
     """log(sum(exp(x), axis=1)) without overflow, for (M, K) arrays."""
-    mx = np.max(x, axis=1)
-    return mx + np.log(np.sum(np.exp(x - mx[:, None]), axis=1))
+    mx: F64 = np.max(x, axis=1)
+    total: F64 = np.sum(np.exp(x - mx[:, None]), axis=1)
+    return mx + np.log(total)
 
 
 def marginal_range_sigma(cam_xy: F64, beacons_xy: F64, weights: F64, sigma_m: float) -> F64:

@@ -66,7 +66,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def align_rot_reflect(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Best orthogonal map (rotation or reflection) about the origin taking est onto gt."""
     U, _, Vt = np.linalg.svd(est.T @ gt)
-    return est @ (U @ Vt)
+    aligned: np.ndarray = est @ (U @ Vt)
+    return aligned
 
 
 def run_once(params: Any, seed: int, sim_cfg: Any, layout: dict[str, tuple[float, float]]

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.arrays import u8
 from engine.bench import BenchSpec
 from engine.progress import log
 from engine.shared_data import shared_data_dir
@@ -214,7 +215,7 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
     per_cycle = max(1, n // max(1, args.cycles))
     cyc_d = [float(np.nanmax(ed[k:k + per_cycle])) for k in range(0, n, per_cycle)]
     cyc_i = [float(np.nanmax(ei[k:k + per_cycle])) for k in range(0, n, per_cycle)]
-    rail = {
+    rail: dict[str, Any] = {
         "spec": spec,
         "frames": n,
         "keyframes": len(store),
@@ -264,6 +265,8 @@ def _ground_truth_store(store: Any) -> Any:
     want = {k.id: k for k in store.keyframes}
     found: dict[int, np.ndarray] = {}
     for f in src.frames():
+        if f.color_bgr is None or f.gt_T_world_cam is None:
+            continue  # (the built-in studio's frames have both)
         gray = f.color_bgr if f.color_bgr.ndim == 2 else None
         for kid, k in want.items():
             if kid in found:
@@ -273,7 +276,7 @@ def _ground_truth_store(store: Any) -> Any:
             if gray is None:
                 import cv2
 
-                gray = cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY)
+                gray = u8(cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY))
             if np.array_equal(gray, k.gray):
                 found[kid] = np.array(f.gt_T_world_cam)
     return store.subset(found).with_poses(found)
@@ -366,7 +369,7 @@ def _memory(store: Any, frames: list[Any]) -> dict[str, Any]:
     if out.returncode != 0:
         log(f"memory: child failed: {out.stderr.strip().splitlines()[-1:]}")
         return {"peak_rss_mb": None, "error": out.stderr.strip()[-300:]}
-    res = json.loads(out.stdout.strip().splitlines()[-1])
+    res: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
     log(f"memory: peak RSS {res['peak_rss_mb']:.0f} MB with {res['keyframes']} keyframes "
          f"({res['after_imports_mb']:.0f} MB after imports)")
     return res

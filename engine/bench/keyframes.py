@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.bench import BenchSpec
 from engine.camera import Intrinsics, project
 from engine.geometry import invert, se3_exp
@@ -200,7 +201,11 @@ def _bench_fusion(args: argparse.Namespace) -> dict[str, Any]:
     t = time.perf_counter()
     for i in range(args.frames):
         f = src.frame(i)
-        gray = cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY)
+        # the built-in studio renders colour, depth and the true pose for every frame
+        assert f.color_bgr is not None
+        assert f.depth_m is not None
+        assert f.gt_T_world_cam is not None
+        gray = u8(cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY))
         if i in kf_idx:
             kf = store.add(f.gt_T_world_cam, gray, np.array(f.depth_m))
             labels = f.payload(StudioLabels)

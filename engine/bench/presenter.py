@@ -145,6 +145,14 @@ def _make(name: str, particles: int) -> Any:
     return create_tracker(name)
 
 
+def _size(frame: Frame) -> tuple[int, int]:
+    """(height, width) of a frame's image."""
+    if frame.color_bgr is None:
+        raise ValueError(f"frame {frame.index} has no image")
+    h, w = frame.color_bgr.shape[:2]
+    return h, w
+
+
 def run_tracker(tracker: Any, frames: list[Frame]) -> tuple[list[Any], np.ndarray]:
     """Results and per-frame track() times (s) over preloaded frames."""
     results, times = [], []
@@ -155,7 +163,7 @@ def run_tracker(tracker: Any, frames: list[Frame]) -> tuple[list[Any], np.ndarra
     return results, np.asarray(times)
 
 
-def score(frames: list[Frame], results: list[Any], times: np.ndarray) -> dict[str, float]:
+def score(frames: list[Frame], results: list[Any], times: np.ndarray) -> dict[str, float | None]:
     from engine.evaluation.boxes import box_scores
 
     gt = np.array([f.gt_box_xywh if f.gt_box_xywh is not None else (np.nan,) * 4
@@ -215,9 +223,9 @@ def _lag_frames_measured(raw: np.ndarray, filt: np.ndarray, max_lag: int = 40) -
     c = np.asarray(costs)
     k = int(np.argmin(c))
     if 0 < k < len(c) - 1:
-        den = c[k - 1] - 2 * c[k] + c[k + 1]
+        den = float(c[k - 1] - 2 * c[k] + c[k + 1])
         if den > 0:
-            return k + 0.5 * (c[k - 1] - c[k + 1]) / den
+            return k + 0.5 * float(c[k - 1] - c[k + 1]) / den
     return float(k)
 
 
@@ -280,7 +288,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             log(f"{seq}: skipped ({exc})")
             results[seq] = {"error": str(exc)}
             continue
-        h, w = frames[0].color_bgr.shape[:2]  # type: ignore[union-attr]
+        h, w = _size(frames[0])
         log(f"{seq}: {len(frames)} frames {w}x{h}")
         results[seq] = {}
         for name in trackers:
@@ -310,7 +318,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         tracker = create_tracker("presenter", PresenterParams(n_particles=100,
                                                               loss_percent=0.0))
         res, times = run_tracker(tracker, frames)
-        h, w = frames[0].color_bgr.shape[:2]  # type: ignore[union-attr]
+        h, w = _size(frames[0])
         stages = {k: round(float(np.median([r.timings_ms.get(k, np.nan) for r in res[1:]])), 3)
                   for k in ("motion_ms", "predict_ms", "likelihood_ms", "total_ms")}
         out["speed"] = {"source": spec, "size": f"{w}x{h}", "particles": 100,

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.arrays import U8, f64, u8
 from engine.bench import BenchSpec
 from engine.geometry import rotation_angle_rad
 from engine.progress import log
@@ -87,7 +88,7 @@ def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
         "range_m": [float(d_a.min()), float(d_a.max())],
         "true_model": true_j,
         "true_omega_rad_s": sc.omega_rad_s,
-        "omega_est_final_rad_s": float(omg[-1]),
+        "omega_est_final_rad_s": None if omg[-1] is None else float(omg[-1]),
         "true_model_prob_final": float(p_final[true_j]),
         "model_probs_final": p_final.tolist(),
         "updates_per_s": 1000.0 / med_ms,
@@ -135,6 +136,17 @@ def run_dlt(trials: int, noise_px: float = 0.5) -> dict[str, Any]:
     }
 
 
+def _read_gray(path: str) -> U8:
+    import cv2
+
+    from engine.errors import CalibrationError
+
+    g = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+    if g is None:
+        raise CalibrationError(f"{path}: cannot read image")
+    return u8(g)
+
+
 def run_distortion(data: Path) -> dict[str, Any]:
     import cv2
 
@@ -167,14 +179,13 @@ def run_distortion(data: Path) -> dict[str, Any]:
 
         lines: list[np.ndarray] = []
         for fpath in files:
-            g = cv2.imread(fpath, cv2.IMREAD_GRAYSCALE)
-            lines += propose_lines_chessboard(g, (9, 6))
+            lines += propose_lines_chessboard(_read_gray(fpath), (9, 6))
         fitr = estimate_radial_from_lines(lines, (640, 480))
         ref = read_opencv_yaml_intrinsics(cb / "left_intrinsics.yml")
         Kr, dr = ref["K"], ref["dist"]
         ref_und = []
         for ln in lines:
-            und = cv2.undistortPoints(ln.reshape(-1, 1, 2), Kr, dr, P=Kr).reshape(-1, 2)
+            und = f64(cv2.undistortPoints(ln.reshape(-1, 1, 2), Kr, dr, P=Kr)).reshape(-1, 2)
             ref_und.append(und)
         out["left_lines"] = len(lines)
         out["left_straightness_before_px"] = fitr.rms_before_px
@@ -184,7 +195,7 @@ def run_distortion(data: Path) -> dict[str, Any]:
         out["left_centre_px"] = list(fitr.model.centre_px)
     radial = data / "opencv_samples" / "lines_distortion" / "calib_radial.jpg"
     if radial.exists():
-        g = cv2.imread(str(radial), cv2.IMREAD_GRAYSCALE)
+        g = _read_gray(str(radial))
         lines = propose_lines_chessboard(g, (9, 6))
         if lines:
             fr = estimate_radial_from_lines(lines, (g.shape[1], g.shape[0]))
@@ -208,7 +219,7 @@ def run_chessboard(data: Path) -> dict[str, Any]:
         "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy, "k1": c.dist_k1k2p1p2k3[0],
         "k2": c.dist_k1k2p1p2k3[1], "rms_px": res.rms_px, "images": len(res.used_images),
         "ref_fx": float(ref["K"][0, 0]), "ref_k1": float(ref["dist"][0]),
-        "ref_rms_px": float(ref["rms_px"]),  # type: ignore[arg-type]
+        "ref_rms_px": ref["rms_px"],
         "fx_rel_diff": abs(c.fx - float(ref["K"][0, 0])) / float(ref["K"][0, 0]),
     }
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -60,11 +61,10 @@ def _stats(times_s: list[float]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
-    import numba
-
     from engine.progress import log
     from engine.sources.synthetic import SyntheticSource
     from engine.studio.presenter import concat_prims
+    from engine.studio.render import numba_max_threads
 
     n = max(2, args.frames)
     t0 = time.perf_counter()
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     t0 = time.perf_counter()
     studio.frame(0)  # compiles or loads the numba cache
     t_first = time.perf_counter() - t0
-    all_threads = numba.config.NUMBA_NUM_THREADS
+    all_threads = numba_max_threads()
     threads = all_threads if args.threads <= 0 else min(args.threads, all_threads)
     log(
         f"bench render: {args.width}x{args.height}, {n} frames per case, "
@@ -111,7 +111,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
     cases: dict[str, list[float]] = {"empty": [], "presenter": [], "frame": [], "frame_noisy": []}
     cpu: dict[str, list[float]] = {name: [] for name in cases}
-    jobs = {
+    jobs: dict[str, Callable[[int], object]] = {
         "empty": lambda i: renderer.render(poses[i]),
         "presenter": lambda i: renderer.render(poses[i], dyn[i]),
         "frame": lambda i: studio.frame(i),
@@ -179,6 +179,7 @@ def write_preview(path: str, width: int = 640, height: int = 480) -> None:
     hand-held frame with depth noise and dropouts (depth shown in the lower-right half)."""
     import cv2
 
+    from engine.frames import Frame
     from engine.persist import atomic_write_png
     from engine.sources.synthetic import SyntheticSource
 
@@ -189,13 +190,19 @@ def write_preview(path: str, width: int = 640, height: int = 480) -> None:
         vis[d <= 0] = 0
         return vis
 
-    rail = SyntheticSource.from_options(
+    def images(f: Frame) -> tuple[np.ndarray, np.ndarray]:
+        # the studio renders both
+        assert f.color_bgr is not None
+        assert f.depth_m is not None
+        return f.color_bgr, f.depth_m
+
+    rail_bgr, rail_d = images(SyntheticSource.from_options(
         {"frames": "180", "cycles": "1", "presenter": "1", "ball": "1", **size}
-    ).frame(40)
-    pan = SyntheticSource.from_options(
+    ).frame(40))
+    pan_bgr, _ = images(SyntheticSource.from_options(
         {"frames": "180", "path": "pan", "presenter": "1", "ball": "1", **size}
-    ).frame(120)
-    hand = SyntheticSource.from_options(
+    ).frame(120))
+    hand_bgr, hand_d = images(SyntheticSource.from_options(
         {
             "frames": "180",
             "path": "handheld",
@@ -204,13 +211,13 @@ def write_preview(path: str, width: int = 640, height: int = 480) -> None:
             "dropouts": "1",
             **size,
         }
-    ).frame(100)
-    hand_img = hand.color_bgr.copy()
-    dv = depth_vis(hand.depth_m)
+    ).frame(100))
+    hand_img = hand_bgr.copy()
+    dv = depth_vis(hand_d)
     half = np.tri(height, width, k=-(width - height) // 2, dtype=bool)[:, ::-1][::-1]
     hand_img[half] = dv[half]
-    top = np.hstack([rail.color_bgr, depth_vis(rail.depth_m)])
-    bottom = np.hstack([pan.color_bgr, hand_img])
+    top = np.hstack([rail_bgr, depth_vis(rail_d)])
+    bottom = np.hstack([pan_bgr, hand_img])
     atomic_write_png(Path(path), np.vstack([top, bottom]))
 
 

@@ -117,7 +117,7 @@ class _Receiver:
 
 
 def _rss_mb() -> float:
-    import psutil  # type: ignore[import-untyped]
+    import psutil
 
     return float(psutil.Process().memory_info().rss) / 2**20
 

@@ -29,10 +29,10 @@ def _bilinear(img: np.ndarray, u: float, v: float) -> float:
     y0 = math.floor(v)
     ax = u - x0
     ay = v - y0
-    i00 = img[y0, x0]
-    i01 = img[y0, x0 + 1]
-    i10 = img[y0 + 1, x0]
-    i11 = img[y0 + 1, x0 + 1]
+    i00: float = img[y0, x0]
+    i01: float = img[y0, x0 + 1]
+    i10: float = img[y0 + 1, x0]
+    i11: float = img[y0 + 1, x0 + 1]
     return (1.0 - ay) * ((1.0 - ax) * i00 + ax * i01) + ay * ((1.0 - ax) * i10 + ax * i11)
 
 

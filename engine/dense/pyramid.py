@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import f32
+
 F32 = NDArray[np.float32]
 
 N_LEVELS = 3
@@ -43,7 +45,7 @@ def build_pyramid(gray_full: F32) -> tuple[F32, F32, F32]:
     """(level0, level1, level2) contiguous float32 images for a full-resolution grey image."""
     import cv2
 
-    blurred = cv2.GaussianBlur(gray_full, (5, 5), 0.0, borderType=cv2.BORDER_REFLECT101)
+    blurred = f32(cv2.GaussianBlur(gray_full, (5, 5), 0.0, borderType=cv2.BORDER_REFLECT101))
     l0 = _half(blurred)
     l1 = _half(l0)
     l2 = _half(l1)

@@ -55,9 +55,10 @@ def _value_noise(grid: F64, a: F64, b: F64) -> F64:
     j0 = b0.astype(np.int64) % n
     i1 = (i0 + 1) % n
     j1 = (j0 + 1) % n
-    return (1 - fb) * ((1 - fa) * grid[j0, i0] + fa * grid[j0, i1]) + fb * (
+    v: F64 = (1 - fb) * ((1 - fa) * grid[j0, i0] + fa * grid[j0, i1]) + fb * (
         (1 - fa) * grid[j1, i0] + fa * grid[j1, i1]
     )
+    return v
 
 
 class PlaneScene:
@@ -133,4 +134,4 @@ class PlaneScene:
 def small_intrinsics(distorted: bool = True) -> Intrinsics:
     """320x240 camera with mild Caltech distortion for fast unit tests."""
     dist = (0.05, -0.08, 0.001, -0.001, 0.02) if distorted else (0.0,) * 5
-    return Intrinsics(260.0, 260.0, 159.5, 119.5, 320, 240, dist, 5000.0)  # type: ignore[arg-type]
+    return Intrinsics(260.0, 260.0, 159.5, 119.5, 320, 240, dist, 5000.0)

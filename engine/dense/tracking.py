@@ -292,6 +292,7 @@ class DenseIncrementalTracker(_DenseBase):
             if alt.good or alt.res.median_abs_e < att.res.median_abs_e:
                 att = alt
         timings["minimize"] = (time.perf_counter() - t) * 1e3
+        T_world_cam: F64 | None  # while LOST: the last good pose (None before the first)
         if att.good:
             self._T_cur_ref = att.res.T_cur_ref
             T_world_cam = ph.orthonormalize(self._T_world_ref @ invert(self._T_cur_ref))
@@ -431,6 +432,7 @@ class DenseKeyframeTracker(_DenseBase):
     ) -> TrackResult:
         p = self._params
         assert self._store is not None
+        T_world_cam: F64 | None  # None while never located against the store
         if att is not None and att.good and kf is not None:
             # T_cur = T^ T*, Alg. 3 (in our T_world_cam convention)
             T_world_cam = ph.orthonormalize(kf.T_world_cam @ invert(att.res.T_cur_ref))

@@ -42,7 +42,8 @@ def _as_boxes(boxes: object, what: str) -> F64:
 def valid_boxes(boxes: F64) -> NDArray[np.bool_]:
     """True where a box is finite with positive width and height."""
     b = _as_boxes(boxes, "boxes")
-    return np.all(np.isfinite(b), axis=1) & (b[:, 2] > 0) & (b[:, 3] > 0)
+    finite: NDArray[np.bool_] = np.all(np.isfinite(b), axis=1)
+    return finite & (b[:, 2] > 0) & (b[:, 3] > 0)
 
 
 def iou_xywh(a: object, b: object) -> F64:

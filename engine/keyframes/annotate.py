@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TypedDict, Unpack
 
 import numpy as np
 from numpy.typing import NDArray
@@ -66,19 +67,19 @@ def predict(
     """Project a world point into a keyframe; flags points behind, outside or occluded."""
     if X_world is None:
         return Prediction(None, None, "no depth at the clicked pixel")
-    X = tuple(float(v) for v in X_world)
+    X = (float(X_world[0]), float(X_world[1]), float(X_world[2]))
     T_cw = invert(T_world_dst)
     p = T_cw[:3, :3] @ np.asarray(X_world) + T_cw[:3, 3]
     if p[2] <= 0.05:
-        return Prediction(None, X, "behind the camera")  # type: ignore[arg-type]
+        return Prediction(None, X, "behind the camera")
     uv = project(intr, p[None])[0]
     if not (0 <= uv[0] <= intr.width - 1 and 0 <= uv[1] <= intr.height - 1):
-        return Prediction(None, X, "outside the image")  # type: ignore[arg-type]
+        return Prediction(None, X, "outside the image")
     if depth_dst is not None:
         z = depth_at(depth_dst, float(uv[0]), float(uv[1]), 1)
         if math.isfinite(z) and z < p[2] * (1.0 - occlusion_rel):
-            return Prediction(None, X, f"occluded (surface at {z:.2f} m before {p[2]:.2f} m)")  # type: ignore[arg-type]
-    return Prediction((float(uv[0]), float(uv[1])), X)  # type: ignore[arg-type]
+            return Prediction(None, X, f"occluded (surface at {z:.2f} m before {p[2]:.2f} m)")
+    return Prediction((float(uv[0]), float(uv[1])), X)
 
 
 def _parabola_offset(m: float, left: float, right: float) -> float:
@@ -194,12 +195,20 @@ def snap(
     )
 
 
+class SnapOptions(TypedDict, total=False):
+    """The keyword options of :func:`snap` (patch and search sizes, acceptance score)."""
+
+    patch_radius: int
+    search_radius: int
+    min_score: float
+
+
 def predict_and_snap(
     intr: Intrinsics,
     src: Keyframe,
     uv_src: tuple[float, float],
     dst: Keyframe,
-    **snap_kw: float,
+    **snap_kw: Unpack[SnapOptions],
 ) -> tuple[Prediction, Snap | None]:
     """Predict a click on keyframe ``src`` in keyframe ``dst`` and snap it."""
     X = point_from_click(intr, src.T_world_cam, src.depth_m, uv_src)
@@ -207,5 +216,5 @@ def predict_and_snap(
     if pred.uv is None:
         return pred, None
     A = local_affine(intr, src.T_world_cam, src.depth_m, uv_src, dst.T_world_cam)
-    s = snap(src.gray, uv_src, dst.gray, pred.uv, A=A, **snap_kw)  # type: ignore[arg-type]
+    s = snap(src.gray, uv_src, dst.gray, pred.uv, A=A, **snap_kw)
     return pred, s

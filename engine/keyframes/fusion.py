@@ -26,8 +26,10 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.camera import Intrinsics, pixels_to_normalized
 from engine.errors import ParamsError, StudioTrackError
+from engine.frames import Frame
 from engine.geometry import invert
 from engine.keyframes.store import KeyframeStore
 from engine.params import Params, param
@@ -150,11 +152,18 @@ class PosedFrames:
         return self.frames[i]
 
 
+class RandomAccessSource(Protocol):
+    """A source that reads or renders any frame by index (e.g. the built-in studio)."""
+
+    def frame(self, index: int) -> Frame: ...
+
+
 class SourceFrames:
     """A :class:`FrameSet` of a random-access source (``source.frame(i)``, e.g. the built-in
     studio) with known poses (tracked or ground truth), rendered/read on demand."""
 
-    def __init__(self, source: object, poses: Mapping[int, F64], skip: Iterable[int] = ()) -> None:
+    def __init__(self, source: RandomAccessSource, poses: Mapping[int, F64],
+                 skip: Iterable[int] = ()) -> None:
         self.source = source
         skip_set = set(skip)
         self.indices = sorted(i for i in poses if i not in skip_set)
@@ -169,13 +178,13 @@ class SourceFrames:
     def load(self, i: int) -> PosedFrame:
         import cv2
 
-        fr = self.source.frame(self.indices[i])  # type: ignore[attr-defined]
+        fr = self.source.frame(self.indices[i])
         if fr.depth_m is None or fr.color_bgr is None:
             raise FusionError(f"fusion: frame {fr.index} of {self.source} has no image or depth")
         gray = (
             fr.color_bgr
             if fr.color_bgr.ndim == 2
-            else cv2.cvtColor(fr.color_bgr, cv2.COLOR_BGR2GRAY)
+            else u8(cv2.cvtColor(fr.color_bgr, cv2.COLOR_BGR2GRAY))
         )
         return PosedFrame(fr.index, gray, fr.depth_m, self.poses[self.indices[i]])
 
@@ -199,7 +208,7 @@ def fuse_depth(
 
     p = params or FusionParams()
     t0 = time.perf_counter()
-    fs: FrameSet = frames if hasattr(frames, "load") else PosedFrames(frames)  # type: ignore[arg-type]
+    fs = PosedFrames(frames) if isinstance(frames, Sequence) else frames
     kfs = list(store.keyframes)
     intr: Intrinsics = store.intrinsics
     if not kfs:

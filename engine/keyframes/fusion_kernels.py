@@ -8,11 +8,26 @@ import math
 import numpy as np
 from numba import njit
 
+from engine.arrays import F32, F64, I32, U8
+
 
 @njit(cache=True, nogil=True)
-def warp_into_keyframe(  # type: ignore[no-untyped-def]
-    buf, cnt, depth, gray, kf_gray, rays_xy, T, intr, dist, has_dist, stride, zmin, zmax, tol
-):
+def warp_into_keyframe(
+    buf: F32,
+    cnt: I32,
+    depth: F32,
+    gray: U8,
+    kf_gray: U8,
+    rays_xy: F64,
+    T: F64,
+    intr: F64,
+    dist: F64,
+    has_dist: bool,
+    stride: int,
+    zmin: float,
+    zmax: float,
+    tol: int,
+) -> int:
     """Warp one frame's depth into a keyframe and append inverse depths per keyframe pixel.
 
     ``T`` = T_kf_cam (4x4); ``intr`` = (fx, fy, cx, cy); ``rays_xy`` (H, W, 2) undistorted
@@ -62,7 +77,9 @@ def warp_into_keyframe(  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def robust_inverse_depth(buf, cnt, delta, min_samples, out):  # type: ignore[no-untyped-def]
+def robust_inverse_depth(
+    buf: F32, cnt: I32, delta: float, min_samples: int, out: F32
+) -> None:
     """Per pixel: median m of the inverse depths, mean of the samples within m +- delta
     (Fig. 10); ``out`` keeps 0 where fewer than ``min_samples`` samples are in the window."""
     n = cnt.shape[0]

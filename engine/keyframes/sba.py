@@ -281,10 +281,11 @@ def _triangulate(
         rows.append(x * P[2] - P[0])
         rows.append(y * P[2] - P[1])
     _, _, vt = np.linalg.svd(np.array(rows))
-    X = vt[-1]
-    if abs(X[3]) < 1e-12:
+    X: F64 = vt[-1]
+    w = float(X[3])
+    if abs(w) < 1e-12:
         raise SBAError(f"SBA: point {lst[0].point_id} cannot be triangulated (parallel rays)")
-    return X[:3] / X[3]
+    return X[:3] / w
 
 
 def _problem(

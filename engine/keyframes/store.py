@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.camera import Intrinsics
 from engine.errors import TrackerError
 from engine.geometry import invert, rotation_angle_rad, rotation_angle_rad_batch
@@ -307,7 +308,7 @@ class KeyframeStore:
                     f"store's {intr.width}x{intr.height}"
                 )
             depth_m = depth.astype(np.float32) / np.float32(intr.depth_scale)
-            kfs.append(Keyframe(kf_id, T, gray, depth_m))
+            kfs.append(Keyframe(kf_id, T, u8(gray), depth_m))
         ids = [k.id for k in kfs]
         if len(set(ids)) != len(ids):
             raise KeyframeStoreError(f"{index_path}: duplicate keyframe ids")

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.dense.params import DenseParams
 from engine.errors import ParamsError, TrackerError
 from engine.frames import readonly
@@ -115,7 +116,7 @@ def thumbnail(gray: NDArray[np.uint8], width: int = 96) -> NDArray[np.uint8]:
 
     h, w = gray.shape[:2]
     out = cv2.resize(gray, (width, max(1, round(h * width / w))), interpolation=cv2.INTER_AREA)
-    return readonly(out)  # type: ignore[return-value]
+    return readonly(u8(out))
 
 
 def record_sweep(
@@ -196,9 +197,9 @@ def record_sweep(
                 gray = (
                     frame.color_bgr
                     if frame.color_bgr.ndim == 2
-                    else cv2.cvtColor(frame.color_bgr, cv2.COLOR_BGR2GRAY)
+                    else u8(cv2.cvtColor(frame.color_bgr, cv2.COLOR_BGR2GRAY))
                 )
-                kept.append(PosedFrame(frame.index, gray, frame.depth_m, readonly(T)))  # type: ignore[arg-type]
+                kept.append(PosedFrame(frame.index, gray, frame.depth_m, readonly(T)))
         if on_progress is not None:
             on_progress(
                 SweepProgress(

@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.presenter.likelihood import apply_gains, bin_map
 
 F64 = NDArray[np.float64]
@@ -55,7 +56,7 @@ def measure_extent(bgr: NDArray[np.uint8], gains: F64 | None, xyh: F64, aspect: 
     if y1 - y0 < 4 or xb - xa < 4:
         return None
     strip = apply_gains(np.ascontiguousarray(bgr[y0:y1:STEP, xa:xb:STEP]), gains)
-    bins = bin_map(cv2.cvtColor(strip, cv2.COLOR_BGR2HSV), n_bins)
+    bins = bin_map(u8(cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)), n_bins)
     cols = xa + STEP * np.arange(bins.shape[1]) + 0.5 * STEP  # image x of each strip column
     outer = np.abs(cols - x) > bg_from_frac * w0
     if int(outer.sum()) < 3:

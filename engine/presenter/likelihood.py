@@ -32,6 +32,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from engine.arrays import i32, u8
+
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
 
@@ -110,7 +112,7 @@ def grey_world_gains(bgr: NDArray[np.uint8], step: int = 8) -> F64:
 def apply_gains(bgr: NDArray[np.uint8], gains: F64 | None) -> NDArray[np.uint8]:
     if gains is None:
         return bgr
-    return cv2.transform(bgr, np.diag(gains))  # per-channel gain, saturating uint8
+    return u8(cv2.transform(bgr, np.diag(gains)))  # per-channel gain, saturating uint8
 
 
 def bhattacharyya(q: F64, q_ref: F64) -> float:
@@ -139,7 +141,8 @@ def motion_likelihood(e_nonmotion: F64 | float, lambda_mot: float) -> F64:
 
 
 @njit(cache=True, nogil=True)
-def _binned_integral(hsv, n, cell, s_min, v_min, inc, soft):  # type: ignore[no-untyped-def]
+def _binned_integral(hsv: NDArray[np.uint8], n: int, cell: int, s_min: int, v_min: int,
+                     inc: np.float32, soft: bool) -> F32:
     H, W = hsv.shape[0], hsv.shape[1]
     hc = (H + cell - 1) // cell
     wc = (W + cell - 1) // cell
@@ -149,9 +152,9 @@ def _binned_integral(hsv, n, cell, s_min, v_min, inc, soft):  # type: ignore[no-
         cy = y // cell + 1
         for x in range(W):
             cx = x // cell + 1
-            h = np.int32(hsv[y, x, 0])
-            s = np.int32(hsv[y, x, 1])
-            v = np.int32(hsv[y, x, 2])
+            h = int(hsv[y, x, 0])
+            s = int(hsv[y, x, 1])
+            v = int(hsv[y, x, 2])
             if s >= s_min and v >= v_min:
                 if soft:
                     # bilinear vote between the two nearest bin centres in hue (circular) and
@@ -209,7 +212,7 @@ def binned_integral(hsv_roi: NDArray[np.uint8], n: int, cell: int = 1,
 
 
 @njit(cache=True, nogil=True)
-def _add_corner(ih, u, v, sign, out):  # type: ignore[no-untyped-def]
+def _add_corner(ih: F32, u: float, v: float, sign: float, out: F64) -> None:
     # bilinear interpolation of the integral histogram at grid coordinates (u, v)
     hc = ih.shape[0] - 1
     wc = ih.shape[1] - 1
@@ -231,7 +234,8 @@ def _add_corner(ih, u, v, sign, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def _rect_hist(ih, cell, x0, y0, x1, y1, out):  # type: ignore[no-untyped-def]
+def _rect_hist(ih: F32, cell: float, x0: float, y0: float, x1: float, y1: float,
+               out: F64) -> None:
     out[:] = 0.0
     _add_corner(ih, x1 / cell, y1 / cell, 1.0, out)
     _add_corner(ih, x0 / cell, y1 / cell, -1.0, out)
@@ -248,8 +252,9 @@ def rect_histogram(integral: F32, cell: int, xywh: tuple[float, float, float, fl
 
 
 @njit(cache=True, nogil=True)
-def _colour_residuals(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h, particles, rel, aspect,
-                      sqrt_ref):  # type: ignore[no-untyped-def]
+def _colour_residuals(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
+                      img_w: int, img_h: int, particles: F64, rel: F64, aspect: float,
+                      sqrt_ref: F64) -> F64:
     n_part = particles.shape[0]
     n_patch = rel.shape[0]
     nb = sqrt_ref.shape[1]
@@ -314,7 +319,8 @@ def colour_residuals(integral: F32, cell: int, roi_xywh: tuple[int, int, int, in
 
 
 @njit(cache=True, nogil=True)
-def _motion_residuals(S, particles, rel, aspect, scale):  # type: ignore[no-untyped-def]
+def _motion_residuals(S: NDArray[np.int32], particles: F64, rel: F64, aspect: float,
+                      scale: float) -> F64:
     img_h = S.shape[0] - 1
     img_w = S.shape[1] - 1
     n_part = particles.shape[0]
@@ -379,7 +385,7 @@ class MotionHistory:
             self.mhi = np.zeros_like(gray_u8)
             return self.mhi
         diff = cv2.absdiff(gray_u8, self._prev)
-        mhi = cv2.subtract(self.mhi, 1.0)  # saturating decay
+        mhi = u8(cv2.subtract(self.mhi, np.array([1.0])))  # saturating decay (scalar 1)
         mhi[diff > self.threshold] = np.uint8(min(self.duration_frames, 255))
         self.mhi = mhi
         self._prev = gray_u8.copy()
@@ -389,4 +395,4 @@ class MotionHistory:
         """Integral image (H+1, W+1) of the motion mask (MHI > 0)."""
         assert self.mhi is not None
         mask = (self.mhi > 0).astype(np.uint8)
-        return cv2.integral(mask, sdepth=cv2.CV_32S)
+        return i32(cv2.integral(mask, sdepth=cv2.CV_32S))

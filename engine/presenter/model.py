@@ -14,7 +14,7 @@ rebuilt from the reference image on load, so nothing binary besides the PNG is s
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8, xywh
 from engine.persist import atomic_write_json, atomic_write_png, read_json_file
 from engine.presenter import PresenterError
 from engine.presenter.likelihood import (
@@ -140,7 +141,7 @@ def build_model(image_bgr: NDArray[np.uint8], main_xywh: Sequence[float],
     if not 2 <= n_bins <= 32:
         raise PresenterError(f"histogram bins per axis must be in 2..32, got {n_bins}")
     balanced = apply_gains(image_bgr, grey_world_gains(image_bgr)) if grey_world else image_bgr
-    hsv = cv2.cvtColor(balanced, cv2.COLOR_BGR2HSV)
+    hsv = u8(cv2.cvtColor(balanced, cv2.COLOR_BGR2HSV))
     mx, my, mw, mh = (float(v) for v in main_xywh)
     hists, rels, warnings = [], [], []
     for p in patches:
@@ -161,7 +162,7 @@ def build_model(image_bgr: NDArray[np.uint8], main_xywh: Sequence[float],
         rels.append(((x - mx) / mw, (y - my) / mh, (x + w - mx) / mw, (y + h - my) / mh))
     return PatchModel(
         main_xywh=(mx, my, mw, mh),
-        patches=tuple(PatchSpec(p.name, tuple(float(v) for v in p.xywh)) for p in patches),  # type: ignore[misc]
+        patches=tuple(PatchSpec(p.name, xywh(p.xywh)) for p in patches),
         n_bins=n_bins,
         hists=np.asarray(hists, dtype=np.float64),
         rel_boxes=np.asarray(rels, dtype=np.float64),
@@ -199,7 +200,7 @@ def model_from_box(image_bgr: NDArray[np.uint8], box_xywh: Sequence[float], n_pa
 
 
 def model_from_parts(image_bgr: NDArray[np.uint8], box_xywh: Sequence[float],
-                     parts: dict[str, Sequence[float]], n_bins: int = 10,
+                     parts: Mapping[str, Sequence[float]], n_bins: int = 10,
                      grey_world: bool = True) -> PatchModel:
     """Model from a main box and named part boxes (clipped into the main region)."""
     H, W = image_bgr.shape[:2]
@@ -266,11 +267,12 @@ def load_model(path: Path) -> tuple[PatchModel, NDArray[np.uint8]]:
     if doc.get("format") != "studiotrack.presenter_model" or doc.get("version") != MODEL_VERSION:
         raise PresenterError(f"{jpath}: not a version-{MODEL_VERSION} presenter model")
     img_path = jpath.parent / str(doc.get("reference_image", "reference.png"))
-    img = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
-    if img is None:
+    read = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
+    if read is None:
         raise PresenterError(f"{img_path}: reference image missing or unreadable")
+    img = u8(read)
     try:
-        patches = [PatchSpec(str(p["name"]), tuple(float(v) for v in p["xywh"]))  # type: ignore[arg-type]
+        patches = [PatchSpec(str(p["name"]), xywh(p["xywh"]))
                    for p in doc["patches"]]
         main = [float(v) for v in doc["main_xywh"]]
         n_bins = int(doc.get("n_bins", 10))

@@ -111,7 +111,7 @@ def load_floor_calibration(path: Path) -> FloorCalibration:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         return calibrate_floor(doc["image_points_px"], doc["floor_points_m"],
-                               tuple(doc.get("robot_floor_xy_m", (0.0, 0.0))))  # type: ignore[arg-type]
+                               tuple(doc.get("robot_floor_xy_m", (0.0, 0.0))))
     except FileNotFoundError:
         raise PresenterError(f"{path}: no such floor calibration") from None
     except (json.JSONDecodeError, KeyError, TypeError, RecursionError) as exc:

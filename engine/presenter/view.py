@@ -38,6 +38,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.particles import systematic_resample
 from engine.presenter import filter as pf
 from engine.presenter.extent import measure_extent
@@ -173,7 +174,7 @@ class ViewTracker:
             step = 2 if cell >= 4 else 1
             cell += cell % step
             roi = apply_gains(bgr[y0:y1:step, x0:x1:step], self._gains)
-            roi_hsv = cv2.cvtColor(roi, cv2.COLOR_BGR2HSV)
+            roi_hsv = u8(cv2.cvtColor(roi, cv2.COLOR_BGR2HSV))
             integral = binned_integral(roi_hsv, self.model.n_bins, cell // step,
                                        pixel_weight=float(step * step))
             ctx = (integral, cell, (x0, y0, x1 - x0, y1 - y0), (W, H))
@@ -232,7 +233,7 @@ class ViewTracker:
         x, y, h = (float(v) for v in self._init_xyh)
         w = h * self.model.aspect
         k = 3.0 ** 0.5  # the enlarged box has 3x the area
-        img = cv2.cvtColor(apply_gains(bgr, self._gains), cv2.COLOR_BGR2HSV)
+        img = u8(cv2.cvtColor(apply_gains(bgr, self._gains), cv2.COLOR_BGR2HSV))
         inner = (round(x - w / 2), round(y - h / 2), round(w), round(h))
         outer = (round(x - k * w / 2), round(y - k * h / 2), round(k * w), round(k * h))
         n = self.model.n_bins

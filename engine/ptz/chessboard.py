@@ -5,11 +5,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.camera import Intrinsics
+from engine.camera import Intrinsics, dist5
 from engine.errors import CalibrationError
 
 F64 = NDArray[np.float64]
@@ -95,7 +96,8 @@ def calibrate_chessboard(
             continue
         try:
             ok, corners = cv2.findChessboardCorners(
-                gray, (cols, rows), cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+                gray, (cols, rows),
+                flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE,
             )
         except cv2.error:
             ok = False
@@ -130,7 +132,7 @@ def calibrate_chessboard(
     cam = Intrinsics(
         fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]), cy=float(K[1, 2]),
         width=size[0], height=size[1],
-        dist_k1k2p1p2k3=tuple(float(v) for v in d),  # type: ignore[arg-type]
+        dist_k1k2p1p2k3=dist5(d),
     )
     return ChessboardResult(cam, float(rms), tuple(per_view), tuple(used), tuple(skipped),
                             tuple(reasons))
@@ -160,11 +162,19 @@ def _common_size(sizes: Sequence[tuple[int, int]]) -> tuple[int, int]:
         raise CalibrationError("no calibration images given")
     counts = Counter((max(w, h), min(w, h)) for w, h in sizes)
     land = counts.most_common(1)[0][0]
-    exact = Counter(tuple(s) for s in sizes if tuple(s) in (land, land[::-1]))
-    return max(exact, key=lambda s: (exact[s], s[0] >= s[1]))  # type: ignore[return-value]
+    exact = Counter((w, h) for w, h in sizes if (w, h) in (land, (land[1], land[0])))
+    return max(exact, key=lambda s: (exact[s], s[0] >= s[1]))
 
 
-def read_opencv_yaml_intrinsics(path: str | Path) -> dict[str, object]:
+class OpenCVIntrinsics(TypedDict):
+    """What :func:`read_opencv_yaml_intrinsics` reads."""
+
+    K: F64  # camera matrix (3, 3)
+    dist: F64  # distortion coefficients, OpenCV's order
+    rms_px: float  # avg_reprojection_error
+
+
+def read_opencv_yaml_intrinsics(path: str | Path) -> OpenCVIntrinsics:
     """camera_matrix, distortion_coefficients and avg_reprojection_error of an OpenCV YAML."""
     import cv2
 
@@ -179,4 +189,5 @@ def read_opencv_yaml_intrinsics(path: str | Path) -> dict[str, object]:
         fs.release()
     if K is None or dist is None:
         raise CalibrationError(f"{path}: no camera_matrix/distortion_coefficients")
-    return {"K": np.asarray(K, float), "dist": np.asarray(dist, float).ravel(), "rms_px": err}
+    return {"K": np.asarray(K, dtype=np.float64),
+            "dist": np.asarray(dist, dtype=np.float64).ravel(), "rms_px": float(err)}

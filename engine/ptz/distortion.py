@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.errors import CalibrationError
 
 F64 = NDArray[np.float64]
@@ -49,7 +50,8 @@ class RadialModel:
         f = np.zeros_like(r2)
         for i, k in enumerate(self.k):  # k3 r^2 + k5 r^4 + ...
             f += k * r2 ** (i + 1)
-        return c + self.r_norm_px * xd * (1.0 + f)[:, None]
+        out: F64 = c + self.r_norm_px * xd * (1.0 + f)[:, None]
+        return out
 
     def distort_px(self, uv: F64, iterations: int = 30) -> F64:
         """Distorted pixels of ideal pixels: Newton on r_u = r_d (1 + sum k r_d^(2i))."""
@@ -70,7 +72,8 @@ class RadialModel:
             if np.max(np.abs(step), initial=0.0) < 1e-13:
                 break
         scale = np.where(ru > 1e-15, rd / np.where(ru > 1e-15, ru, 1.0), 1.0)
-        return c + self.r_norm_px * xu * scale[:, None]
+        out: F64 = c + self.r_norm_px * xu * scale[:, None]
+        return out
 
     def undistort_maps(self, width: int, height: int) -> tuple[NDArray[np.float32], ...]:
         """cv2.remap maps producing the ideal image (same size) from a distorted one."""
@@ -86,7 +89,7 @@ class RadialModel:
 
         h, w = image.shape[:2]
         mx, my = self.undistort_maps(w, h)
-        return cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        return u8(cv2.remap(image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT))
 
     def to_json_dict(self) -> dict[str, object]:
         return {
@@ -110,11 +113,12 @@ class LineFitResult:
 
 def line_distances(points: F64) -> F64:
     """Signed perpendicular distances of (N, 2) points to their total-least-squares line."""
-    c = points.mean(axis=0)
+    c: F64 = points.mean(axis=0)
     d = points - c
     # normal = eigenvector of the smallest eigenvalue of the scatter matrix
     _, vecs = np.linalg.eigh(d.T @ d)
-    return d @ vecs[:, 0]
+    normal: F64 = vecs[:, 0]
+    return d @ normal
 
 
 def straightness_rms_px(lines: Sequence[F64]) -> float:
@@ -283,7 +287,7 @@ def propose_lines_edges(
                         other = cand[:2] if forward else cand[2:]
                         gap = float(np.linalg.norm(other - tip))
                         if gap < best_gap and float(direction(cand) @ d0) > cos_turn:
-                            best, best_gap, best_seg = j, gap, cand
+                            best, best_gap, best_seg = int(j), gap, cand
                 if best < 0 or best_seg is None:
                     break
                 used[best] = True

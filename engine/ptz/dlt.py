@@ -101,7 +101,7 @@ def _normaliser_2d(m: F64) -> F64:
 def _normaliser_3d(X: F64) -> F64:
     c = X.mean(axis=0)
     s = np.sqrt(3.0) / max(float(np.mean(np.linalg.norm(X - c, axis=1))), 1e-12)
-    T = np.eye(4) * s
+    T: F64 = np.eye(4) * s
     T[3, 3] = 1.0
     T[:3, 3] = -s * c
     return T

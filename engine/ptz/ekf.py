@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import f64
+
 F64 = NDArray[np.float64]
 
 POS = np.array([0, 3, 6])
@@ -55,13 +57,13 @@ def q_axis(omega: float, dt: float, q_psd: float) -> F64:
     M[:3, 3:] = Qc
     M[3:, 3:] = A.T
     E = expm(M * dt)
-    Phi = E[3:, 3:].T
+    Phi: F64 = E[3:, 3:].T
     return Phi @ E[:3, 3:]
 
 
 def block3(m: F64) -> F64:
     """The 9x9 matrix acting as ``m`` on each of the x, y, z axis blocks."""
-    return np.kron(np.eye(3), m)
+    return f64(np.kron(np.eye(3), m))
 
 
 def h_measure(x: F64, P: F64, c_world: F64) -> F64:

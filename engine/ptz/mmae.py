@@ -60,8 +60,8 @@ class Mmae:
 
     @property
     def probs(self) -> F64:
-        p = np.exp(self.log_p - self.log_p.max())
-        return p / p.sum()
+        p: F64 = np.exp(self.log_p - self.log_p.max())
+        return p / float(p.sum())
 
     def init(self, x0: F64, P0: F64) -> None:
         for f in self.filters:

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import f32, f64
+
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
 
@@ -42,7 +44,8 @@ def colour_score(image_bgr: NDArray[np.uint8], target_bgr: tuple[int, int, int])
     if n2 < 1.0:
         raise ValueError(f"target colour {target_bgr} is grey: choose a saturated colour")
     chroma = img - img.mean(axis=2, keepdims=True)
-    return np.clip((chroma @ w) / n2, 0.0, 1.0).astype(np.float32)
+    score: F32 = np.clip((chroma @ w) / n2, 0.0, 1.0).astype(np.float32)
+    return score
 
 
 def find_blob(score: F32, threshold: float = 0.5, min_area_px: int = 6,
@@ -85,10 +88,11 @@ def _bilinear(img: F32, xy: F64) -> F64:
     y0 = y.astype(int)
     ax = x - x0
     ay = y - y0
-    return (
+    out: F64 = (
         img[y0, x0] * (1 - ax) * (1 - ay) + img[y0, x0 + 1] * ax * (1 - ay)
         + img[y0 + 1, x0] * (1 - ax) * ay + img[y0 + 1, x0 + 1] * ax * ay
     )
+    return out
 
 
 def _internal_matrix(n: int, alpha: float, beta: float, tau: float) -> F64:
@@ -101,7 +105,7 @@ def _internal_matrix(n: int, alpha: float, beta: float, tau: float) -> F64:
         A[i, i] = c
         A[i, (i + 1) % n] = A[i, (i - 1) % n] = b
         A[i, (i + 2) % n] = A[i, (i - 2) % n] = a
-    return np.linalg.inv(np.eye(n) + tau * A)
+    return f64(np.linalg.inv(np.eye(n) + tau * A))
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,8 +139,8 @@ def run_snake(
     m = float(e.max())
     if m > 0:
         e = e / m
-    fx = cv2.Sobel(e, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-    fy = cv2.Sobel(e, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+    fx = f32(cv2.Sobel(e, cv2.CV_32F, 1, 0, ksize=3) / 8.0)
+    fy = f32(cv2.Sobel(e, cv2.CV_32F, 0, 1, ksize=3) / 8.0)
     if external == "gvf":
         fx, fy = gvf(fx, fy)
     elif external != "gradient":

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.arrays import xywh
 from engine.camera import Intrinsics
 from engine.frames import Frame
 from engine.persist import read_json_file
@@ -272,4 +273,9 @@ def _opt_float(v: Any) -> float | None:
 
 
 def _box(b: Any) -> tuple[float, float, float, float] | None:
-    return None if b is None else tuple(float(v) for v in b)  # type: ignore[return-value]
+    if b is None:
+        return None
+    try:
+        return xywh(b)
+    except (TypeError, ValueError) as exc:
+        raise SessionError(f"recorded gt_box_xywh {b!r}: {exc}") from None

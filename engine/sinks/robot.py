@@ -82,7 +82,7 @@ class RobotControlSink(SinkBase):
             level, msg = SinkLevel.OK, ""
         else:
             level, msg = SinkLevel.WAITING, "no correction sent recently"
-        targets = ()
+        targets: tuple[TargetHealth, ...] = ()
         if self._target is not None:
             host, port = self._target
             targets = (TargetHealth(f"robot:{host}:{port}", level, 0.0, self.sent, self.errors,

@@ -190,7 +190,11 @@ class BeaconCsvSource(Source):
         if not self.steps:
             raise SourceError(f"{path}: no valid range readings ({self.stats['malformed']} "
                               f"malformed, {self.stats['unknown_ids']} unknown ids)")
-        ts = [s.timestamp_s for s in self.steps]
+        # a log's steps all carry their timestamp (only live readings may lack one)
+        ts = [s.timestamp_s for s in self.steps if s.timestamp_s is not None]
+        if len(ts) != len(self.steps):
+            raise SourceError(f"{path}: a range reading has no timestamp")
+        self._times = ts
         span = ts[-1] - ts[0]
         self.nominal_fps = (len(ts) - 1) / span if len(ts) > 1 and span > 0 else 10.0
         self.name = f"beacon log {path} ({len(self.steps)} steps)"
@@ -219,8 +223,8 @@ class BeaconCsvSource(Source):
         return len(self.steps)
 
     def frames(self) -> Iterator[Frame]:
-        for i, s in enumerate(self.steps):
-            yield _frame(i, s.timestamp_s, s.ranges_m, s.gt_xy, self._layout, None, self.stats,
+        for i, (s, t) in enumerate(zip(self.steps, self._times, strict=True)):
+            yield _frame(i, t, s.ranges_m, s.gt_xy, self._layout, None, self.stats,
                          self.beacon_ids)
 
 

@@ -12,6 +12,7 @@ that needs them must be fed a calibrated source).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Iterator
@@ -85,7 +86,7 @@ class CameraSource(Source):
         while True:
             cap = self._cap
             grabber: NewestGrabber[np.ndarray] = NewestGrabber(
-                lambda c=cap: self._grab(c), name=f"camera-{self.index}-grabber"
+                functools.partial(self._grab, cap), name=f"camera-{self.index}-grabber"
             )
             grabber.start()
             try:

@@ -27,6 +27,7 @@ and tries to reopen the camera every ``reconnect_s`` until it is back.
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import time
 from collections.abc import Callable, Iterator
@@ -361,8 +362,10 @@ class SdkStream:
     ) -> tuple[int, int, int]:
         usable = {m for m in color_modes if any(d[2] == m[2] for d in depth_modes)}
         if opts.file is not None and opts.width is None and opts.fps is None:
-            return max(usable or color_modes, key=lambda m: m[0] * m[1])
-        w, h = (opts.width, opts.height) if opts.width is not None else DEFAULT_SIZE
+            m = max(usable or color_modes, key=lambda m: m[0] * m[1])
+            return int(m[0]), int(m[1]), int(m[2])
+        w, h = ((opts.width, opts.height) if opts.width is not None and opts.height is not None
+                else DEFAULT_SIZE)
         fps = opts.fps or DEFAULT_FPS
         if opts.file is not None and opts.fps is None:
             fps = max(m[2] for m in usable or color_modes)
@@ -372,7 +375,7 @@ class SdkStream:
                 f"{where}: {w}x{h}@{fps} is not supported (colour with depth: the {kind} "
                 f"{_mode_text(usable)})"
             )
-        return int(w), int(h), int(fps)  # type: ignore[arg-type]
+        return int(w), int(h), int(fps)
 
     @staticmethod
     def _same_geometry(dprof: Any, cprof: Any) -> bool:
@@ -567,7 +570,7 @@ class RealSenseSource(Source):
             stream = self._stream
             assert stream is not None
             grabber: NewestGrabber[RawFrame] = NewestGrabber(
-                lambda s=stream: s.read(self.opts.timeout_s), name="realsense-grabber"
+                functools.partial(stream.read, self.opts.timeout_s), name="realsense-grabber"
             )
             grabber.start()
             lost_since: float | None = None

@@ -26,12 +26,13 @@ naming the model and the error.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.camera import Intrinsics
+from engine.camera import Intrinsics, dist5
 from engine.errors import SourceError
 
 F64 = NDArray[np.float64]
@@ -116,12 +117,12 @@ def intrinsics_from_sdk(
     c = [float(v) for v in list(coeffs)[:5]] + [0.0] * max(0, 5 - len(list(coeffs)))
     if not all(np.isfinite(c)):
         raise SourceError(f"{where}: distortion coefficients are not finite: {c}")
-    base = {"fx": float(fx), "fy": float(fy), "cx": float(ppx), "cy": float(ppy),
-            "width": int(width), "height": int(height), "depth_scale": float(depth_scale)}
+    base = Intrinsics(fx=float(fx), fy=float(fy), cx=float(ppx), cy=float(ppy),
+                      width=int(width), height=int(height), depth_scale=float(depth_scale))
     if key == "none" or (key in SUPPORTED_MODELS and not any(c)):
-        return Intrinsics(**base), 0.0  # type: ignore[arg-type]
+        return base, 0.0
     if key == "brown_conrady":
-        return Intrinsics(**base, dist_k1k2p1p2k3=tuple(c)), 0.0  # type: ignore[arg-type]
+        return dataclasses.replace(base, dist_k1k2p1p2k3=dist5(c)), 0.0
     if key not in FITTED_MODELS:
         raise SourceError(
             f"{where}: distortion model {name!r} is not supported (supported: None, Brown "
@@ -139,4 +140,4 @@ def intrinsics_from_sdk(
             f"{where}: distortion model {name!r} with coefficients {c} cannot be expressed "
             f"in the Caltech model (best fit is off by {err_px:.2f} px > {MAX_FIT_ERROR_PX} px)"
         )
-    return Intrinsics(**base, dist_k1k2p1p2k3=k), err_px  # type: ignore[arg-type]
+    return dataclasses.replace(base, dist_k1k2p1p2k3=k), err_px

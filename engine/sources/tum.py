@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -78,6 +79,14 @@ def read_tum_list(path: Path) -> list[TumListEntry]:
     return entries
 
 
+class _Link(NamedTuple):
+    """One pair (i, j) of an association chain and the chain before it."""
+
+    i: int
+    j: int
+    parent: _Link | None
+
+
 def associate_one_to_one(
     t_a: F64, t_b: F64, max_dt_s: float = MAX_ASSOCIATION_DT_S
 ) -> list[tuple[int, int]]:
@@ -95,8 +104,7 @@ def associate_one_to_one(
     lo = np.searchsorted(t_b, t_a - max_dt_s, side="left")
     hi = np.searchsorted(t_b, t_a + max_dt_s, side="right")
     # state: last used j -> (pairs, -total gap, back-pointer chain of (i, j, parent))
-    Chain = tuple[int, int, object] | None
-    states: dict[int, tuple[int, float, Chain]] = {-1: (0, 0.0, None)}
+    states: dict[int, tuple[int, float, _Link | None]] = {-1: (0, 0.0, None)}
     for i in range(len(t_a)):
         cands = [
             (j, abs(float(t_a[i]) - float(t_b[j])))
@@ -110,7 +118,7 @@ def associate_one_to_one(
             for j, gap in cands:
                 if j <= last_j:
                     continue
-                cand = (count + 1, neg_gap - gap, (i, j, chain))
+                cand = (count + 1, neg_gap - gap, _Link(i, j, chain))
                 old = new.get(j)
                 if old is None or cand[:2] > old[:2]:
                     new[j] = cand
@@ -127,7 +135,7 @@ def associate_one_to_one(
     while chain is not None:
         i, j, parent = chain
         pairs.append((i, j))
-        chain = parent  # type: ignore[assignment]
+        chain = parent
     pairs.reverse()
     assert len(pairs) == count
     return pairs

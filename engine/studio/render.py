@@ -29,6 +29,8 @@ from engine.camera import Intrinsics, pixels_to_normalized
 from engine.studio.scene import StudioScene
 
 F64 = NDArray[np.float64]
+I32 = NDArray[np.int32]
+I64 = NDArray[np.int64]
 
 _EPS = 1e-6
 _INF = 1e30
@@ -38,12 +40,21 @@ _DYN_LIGHT = np.array([-0.35, -1.0, 0.9]) / np.linalg.norm([-0.35, -1.0, 0.9])
 _DYN_AMBIENT = 0.42
 _DYN_DIFFUSE = 0.7
 
+
+
+def numba_max_threads() -> int:
+    """Size of numba's thread pool (``numba.config.NUMBA_NUM_THREADS``: set when numba
+    starts, which its type information does not show)."""
+    return int(vars(numba.config)["NUMBA_NUM_THREADS"])
+
+
 # the omp/workqueue layers do not like concurrent parallel launches from several threads
 _KERNEL_LOCK = threading.Lock()
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _hit_box(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
+def _hit_box(ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+             g: F64) -> tuple[float, int]:
     """Entry distance and face of a yawed box (the ray starts outside), or (-1, -1)."""
     c, s = g[6], g[7]
     rx, ry, rz = ox - g[0], oy - g[1], oz - g[2]
@@ -105,7 +116,8 @@ def _hit_box(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _hit_cyl(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
+def _hit_cyl(ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+             g: F64) -> tuple[float, int]:
     cx, cy, r, z0, z1 = g[0], g[1], g[2], g[3], g[4]
     px = ox - cx
     py = oy - cy
@@ -135,7 +147,8 @@ def _hit_cyl(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _hit_sph(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
+def _hit_sph(ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+             g: F64) -> tuple[float, int]:
     px = ox - g[0]
     py = oy - g[1]
     pz = oz - g[2]
@@ -151,7 +164,8 @@ def _hit_sph(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _hit_cap(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
+def _hit_cap(ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+             g: F64) -> tuple[float, int]:
     """Ray-capsule intersection (segment a-b, radius r; unit ray direction)."""
     bax, bay, baz = g[3] - g[0], g[4] - g[1], g[5] - g[2]
     oax, oay, oaz = ox - g[0], oy - g[1], oz - g[2]
@@ -190,7 +204,8 @@ def _hit_cap(ox, oy, oz, dx, dy, dz, g):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _fetch(mat_i, mat_f, atlas, m, u, v, out):  # type: ignore[no-untyped-def]
+def _fetch(mat_i: I64, mat_f: F64, atlas: NDArray[np.uint32], m: int, u: float, v: float,
+           out: F64) -> bool:
     """Bilinear texture fetch (or flat albedo) into out[0:3] as floats in [0, 255]; returns
     False for a flat material. ``atlas`` holds texels packed as b | g << 8 | r << 16."""
     tw = mat_i[m, 2]
@@ -243,7 +258,7 @@ def _fetch(mat_i, mat_f, atlas, m, u, v, out):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, fastmath=True, nogil=True)
-def _box_uv(lx, ly, lz, g, face):  # type: ignore[no-untyped-def]
+def _box_uv(lx: float, ly: float, lz: float, g: F64, face: int) -> tuple[float, float]:
     a = face // 2
     if a == 0:
         return ly + g[4], lz + g[5]
@@ -253,30 +268,30 @@ def _box_uv(lx, ly, lz, g, face):  # type: ignore[no-untyped-def]
 
 
 @njit(parallel=True, cache=True, fastmath=True, nogil=True)
-def _render_kernel(  # type: ignore[no-untyped-def]
-    xn,
-    yn,
-    inv_norm,
-    row_ymin,
-    row_ymax,
-    R,
-    o,
-    room,
-    room_mat,
-    ptype,
-    pgeom,
-    pmat,
-    plabel,
-    prect,
-    pdmin,
-    mat_i,
-    mat_f,
-    atlas,
-    dyn,
-    out_bgr,
-    out_depth,
-    out_label,
-):
+def _render_kernel(
+    xn: F64,
+    yn: F64,
+    inv_norm: F64,
+    row_ymin: F64,
+    row_ymax: F64,
+    R: F64,
+    o: F64,
+    room: F64,
+    room_mat: I32,
+    ptype: I32,
+    pgeom: F64,
+    pmat: I32,
+    plabel: NDArray[np.uint8],
+    prect: F64,
+    pdmin: F64,
+    mat_i: I64,
+    mat_f: F64,
+    atlas: NDArray[np.uint32],
+    dyn: F64,
+    out_bgr: NDArray[np.uint8],
+    out_depth: NDArray[np.float32],
+    out_label: NDArray[np.uint8],
+) -> None:
     H, W = xn.shape
     N = ptype.shape[0]
     ox, oy, oz = o[0], o[1], o[2]
@@ -411,7 +426,7 @@ def _render_kernel(  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def label_boxes(labels, n_labels):  # type: ignore[no-untyped-def]
+def label_boxes(labels: NDArray[np.uint8], n_labels: int) -> I64:
     """Per label: (xmin, ymin, xmax, ymax, pixel count) over the label map (count 0: absent)."""
     out = np.zeros((n_labels, 5), np.int64)
     for i in range(n_labels):
@@ -522,10 +537,11 @@ class Renderer:
                 np.empty((h, w), np.uint8),
             )
         prev_threads = numba.get_num_threads()
-        want = numba.config.NUMBA_NUM_THREADS if self.threads <= 0 else self.threads
+        all_threads = numba_max_threads()
+        want = all_threads if self.threads <= 0 else self.threads
         with _KERNEL_LOCK:
             # thread-local in numba: restored so that other kernels on this thread keep theirs
-            numba.set_num_threads(max(1, min(want, numba.config.NUMBA_NUM_THREADS)))
+            numba.set_num_threads(max(1, min(want, all_threads)))
             try:
                 _render_kernel(
                     self.xn,

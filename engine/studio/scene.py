@@ -28,6 +28,7 @@ means a flat albedo (b, g, r) shaded at render time (presenter, ball).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -35,10 +36,15 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.studio import textures as tx
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
+#: a texture generator: ``gen(rng, (rows, cols), texel_m)`` -> RGB image in [0, 1]
+TextureGen = Callable[[np.random.Generator, tuple[int, int], float], F32]
+#: world points and normals of a face at texel coordinates: ``p_fn(rows, cols)``
+SurfaceFn = Callable[[F64, F64], tuple[F64, F64]]
 
 BOX, CYL, SPH, CAP = 0, 1, 2, 3
 
@@ -153,7 +159,7 @@ class _Builder:
         h, w = rgb01.shape[:2]
         rgb = np.ascontiguousarray(rgb01, dtype=np.float32)
         # saturating, rounding conversion (values are >= 0, so the "abs" is a no-op)
-        bgr = cv2.convertScaleAbs(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), alpha=255.0)
+        bgr = u8(cv2.convertScaleAbs(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), alpha=255.0))
         self.chunks.append(bgr.reshape(-1, 3))
         self.materials.append(
             [float(self.offset), float(h), float(w), texel_m, float(wrap), v_top_m, 0, 0, 0]
@@ -167,14 +173,14 @@ class _Builder:
 
     # baking -----------------------------------------------------------------------------
     @staticmethod
-    def _bake(albedo: F32, p_fn: object, shape: tuple[int, int], step_px: int) -> F32:
+    def _bake(albedo: F32, p_fn: SurfaceFn, shape: tuple[int, int], step_px: int) -> F32:
         """Multiply by the lighting evaluated on a coarse grid (``p_fn(rows, cols)`` gives
         world points and normals of texel coordinates) and upsampled (lighting is smooth)."""
         h, w = shape
         rr = np.linspace(0, h - 1, max(2, h // step_px + 2))
         cc = np.linspace(0, w - 1, max(2, w // step_px + 2))
         R, C = np.meshgrid(rr, cc, indexing="ij")
-        p, n = p_fn(R, C)  # type: ignore[operator]
+        p, n = p_fn(R, C)
         s = shade_static(p, n).astype(np.float32)
         s_full = cv2.resize(s, (w, h), interpolation=cv2.INTER_LINEAR)
         return albedo * s_full[..., None]
@@ -184,7 +190,7 @@ class _Builder:
         geom: list[float],
         face: int,
         texel_m: float,
-        gen: object,
+        gen: TextureGen,
         inside: bool = False,
     ) -> int:
         """Texture of one box face: ``gen(rng, shape, texel_m)`` gives the viewer's image."""
@@ -196,7 +202,7 @@ class _Builder:
         ua, va = _UV_AXES[a]
         U, V = 2 * hh[ua], 2 * hh[va]
         shape = tx.texture_shape(U, V, texel_m)
-        albedo = gen(self.rng, shape, texel_m)  # type: ignore[operator]
+        albedo = gen(self.rng, shape, texel_m)
         n_out = Rz[:, a] * sgn
         n_view = -n_out if inside else n_out
         if a != 2:
@@ -215,14 +221,14 @@ class _Builder:
         return self._add_texture(baked, texel_m, False, V)
 
     def cyl_materials(
-        self, geom: list[float], texel_m: float, side: object, top: object
+        self, geom: list[float], texel_m: float, side: TextureGen, top: TextureGen
     ) -> list[int]:
         cx, cy, r, z0, z1 = geom[:5]
         n_cols = max(8, round(2 * math.pi * r / texel_m))
         t_eff = 2 * math.pi * r / n_cols
         V = z1 - z0
         shape = (tx.texture_shape(1.0, V, t_eff)[0], n_cols)
-        albedo = side(self.rng, shape, t_eff)  # type: ignore[operator]
+        albedo = side(self.rng, shape, t_eff)
 
         def p_side(rows: F64, cols: F64) -> tuple[F64, F64]:
             th = cols * t_eff / r - math.pi
@@ -232,7 +238,7 @@ class _Builder:
 
         m_side = self._add_texture(self._bake(albedo, p_side, shape, 4), t_eff, True, V)
         shape_t = tx.texture_shape(2 * r, 2 * r, texel_m)
-        albedo_t = top(self.rng, shape_t, texel_m)  # type: ignore[operator]
+        albedo_t = top(self.rng, shape_t, texel_m)
 
         def p_top(rows: F64, cols: F64) -> tuple[F64, F64]:
             p = np.stack(
@@ -243,12 +249,12 @@ class _Builder:
         m_top = self._add_texture(self._bake(albedo_t, p_top, shape_t, 4), texel_m, False, 2 * r)
         return [m_side, m_top]
 
-    def sph_material(self, geom: list[float], texel_m: float, gen: object) -> int:
+    def sph_material(self, geom: list[float], texel_m: float, gen: TextureGen) -> int:
         cx, cy, cz, r = geom[:4]
         n_cols = max(8, round(2 * math.pi * r / texel_m))
         t_eff = 2 * math.pi * r / n_cols
         shape = (tx.texture_shape(1.0, 2 * r, t_eff)[0], n_cols)
-        albedo = gen(self.rng, shape, t_eff)  # type: ignore[operator]
+        albedo = gen(self.rng, shape, t_eff)
 
         def p_fn(rows: F64, cols: F64) -> tuple[F64, F64]:
             z = cz + r - rows * t_eff
@@ -265,14 +271,16 @@ class _Builder:
         centre: tuple[float, float, float],
         half: tuple[float, float, float],
         yaw_rad: float,
-        faces: dict[int, object] | object,
+        faces: Mapping[int | str, TextureGen] | TextureGen,
         texel_m: float = 0.005,
     ) -> None:
+        """``faces``: one generator for all faces, or one per face number and a "default"."""
         geom = [*centre, *half, math.cos(yaw_rad), math.sin(yaw_rad), 0.0]
-        gens = faces if isinstance(faces, dict) else {}
+        gens: Mapping[int | str, TextureGen] = (
+            faces if isinstance(faces, Mapping) else {"default": faces})
         mats = []
         for f in range(6):
-            gen = gens.get(f, gens.get("default")) if gens else faces
+            gen = gens[f] if f in gens else gens["default"]
             if f == 4 and centre[2] - half[2] <= 1e-6:
                 mats.append(self.add_flat((0.0, 0.0, 0.0)))  # bottom face on the floor
                 continue
@@ -289,8 +297,8 @@ class _Builder:
         r: float,
         z0: float,
         z1: float,
-        side: object,
-        top: object,
+        side: TextureGen,
+        top: TextureGen,
         texel_m: float = 0.005,
     ) -> None:
         geom = [cx, cy, r, z0, z1, 0.0, 0.0, 0.0, 0.0]
@@ -305,7 +313,7 @@ class _Builder:
             )
         )
 
-    def add_sph(self, cx: float, cy: float, cz: float, r: float, gen: object) -> None:
+    def add_sph(self, cx: float, cy: float, cz: float, r: float, gen: TextureGen) -> None:
         geom = [cx, cy, cz, r, 0.0, 0.0, 0.0, 0.0, 0.0]
         m = self.sph_material(geom, 0.006, gen)
         self.prims.append(
@@ -340,11 +348,12 @@ def _back_wall(rng: np.random.Generator, shape: tuple[int, int], t: float) -> F3
             slice(tx.px(xa - x0, t), tx.px(xb - x0, t)),
         )
 
-    def paste(xa: float, xb: float, za: float, zb: float, gen: object) -> None:
+    def paste(xa: float, xb: float, za: float, zb: float,
+              gen: Callable[[tuple[int, int]], F32]) -> None:
         sl = sub(xa, xb, za, zb)
         h = sl[0].stop - sl[0].start
         w = sl[1].stop - sl[1].start
-        img[sl] = gen((h, w))  # type: ignore[operator]
+        img[sl] = gen((h, w))
 
     paste(-5.0, -2.9, 0.0, 3.6, lambda s: tx.bricks(rng, s, t))
     paste(-2.9, 0.5, 0.0, 2.5, lambda s: tx.wood_planks(rng, s, t, 0.15, (0.5, 0.34, 0.2), True))
@@ -476,7 +485,7 @@ def _build(seed: int) -> StudioScene:
         bld.box_face_material(room_geom, f, t, g, inside=True) for f, (g, t) in room_gens.items()
     ]
 
-    def flat(rgb: tuple[float, float, float]) -> object:
+    def flat(rgb: tuple[float, float, float]) -> TextureGen:
         return lambda r, s, t: tx.metal(r, s, t, rgb)
 
     # news desk with a monitor on it

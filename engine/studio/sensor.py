@@ -7,6 +7,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
+
 F32 = NDArray[np.float32]
 
 
@@ -62,4 +64,4 @@ def vignette_gain(xn: NDArray[np.float64], yn: NDArray[np.float64], strength: fl
 def lens_blur(bgr: NDArray[np.uint8], sigma_px: float) -> NDArray[np.uint8]:
     """Gaussian blur of the colour image (optics): one sample per pixel leaves object edges
     aliased; a real lens band-limits them."""
-    return cv2.GaussianBlur(bgr, (0, 0), sigma_px)
+    return u8(cv2.GaussianBlur(bgr, (0, 0), sigma_px))

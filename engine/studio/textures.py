@@ -15,6 +15,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import f32
+
 F32 = NDArray[np.float32]
 RGB = tuple[float, float, float]
 
@@ -109,7 +111,7 @@ def text(
 def blur(img: F32, sigma_px: float) -> F32:
     if sigma_px <= 0:
         return img
-    return cv2.GaussianBlur(img, (0, 0), sigma_px)
+    return f32(cv2.GaussianBlur(img, (0, 0), sigma_px))
 
 
 # ----------------------------------------------------------------------------- materials
@@ -145,9 +147,9 @@ def wood_planks(
     img *= tone[plank_id][:, None, None]
     img += hue[plank_id][:, None, :]
     # grain: noise stretched along the plank (x), fine across it
-    g = cv2.resize(
+    g = f32(cv2.resize(
         rng.random((h, max(2, w // 40)), dtype=np.float32), (w, h), interpolation=cv2.INTER_CUBIC
-    )
+    ))
     img = modulate(img, blur(g, 0.7), 0.22)
     # joints: dark lines between planks and staggered butt joints
     joint = (rows % plank_px) < max(1, plank_px // 30)

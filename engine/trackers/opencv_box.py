@@ -6,9 +6,11 @@ reports a failure the box holds its last value and the state is LOST.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from engine.arrays import u8, xywh
 from engine.errors import ParamsError, TrackerError
 from engine.frames import Frame
 from engine.params import Params, param
@@ -31,8 +33,9 @@ class OpenCVBoxParams(Params):
 def _create(kind: str) -> Any:
     import cv2
 
-    cls = {"kcf": cv2.TrackerKCF, "mil": cv2.TrackerMIL, "csrt": cv2.TrackerCSRT}[kind]
-    return cls.create()  # OpenCV 5: TrackerX.create(), default parameters
+    create: dict[str, Callable[[], Any]] = {
+        "kcf": cv2.TrackerKCF.create, "mil": cv2.TrackerMIL.create, "csrt": cv2.TrackerCSRT.create}
+    return create[kind]()  # OpenCV 5: TrackerX.create(), default parameters
 
 
 class OpenCVBoxTracker:
@@ -61,7 +64,7 @@ class OpenCVBoxTracker:
         if img is None:
             raise TrackerError(f"{self.kind} tracker: frame {frame.index} has no image")
         if img.ndim == 2:
-            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+            img = u8(cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
         if self._cv is None:
             box = self._params.init_box_xywh or frame.gt_box_xywh
             if box is None:
@@ -86,7 +89,7 @@ class OpenCVBoxTracker:
             return self._result(TrackState.TRACKING)
         ok, box = self._cv.update(img)
         if ok:
-            self._box = tuple(float(v) for v in box)  # type: ignore[assignment]
+            self._box = xywh(box)
         return self._result(TrackState.TRACKING if ok else TrackState.LOST)
 
     def _result(self, state: TrackState) -> TrackResult:

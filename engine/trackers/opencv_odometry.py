@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import f32
 from engine.camera import Intrinsics
 from engine.errors import ParamsError
 from engine.frames import Frame, readonly
@@ -159,7 +160,7 @@ class OpenCVOdometryTracker:
             mx, my = self._undistort_maps
             color = cv2.remap(color, mx, my, cv2.INTER_LINEAR)
             # Nearest neighbour: interpolating depth across edges invents surfaces.
-            depth = cv2.remap(depth, mx, my, cv2.INTER_NEAREST)
+            depth = f32(cv2.remap(depth, mx, my, cv2.INTER_NEAREST))
         return depth, color
 
     # -- per frame ----------------------------------------------------------------------

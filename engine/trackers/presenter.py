@@ -20,11 +20,14 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from engine.arrays import XYWH, xywh
 from engine.errors import TrackerError
 from engine.frames import Frame
 from engine.presenter.control import ControlCommand, RobotCameraCommand
@@ -124,7 +127,7 @@ class PresenterTracker:
         p = self._params
         model = self.model
         if model is None and p.model_path:
-            model, _ = load_model(p.model_path)
+            model, _ = load_model(Path(p.model_path))
         if model is None:
             if frame.gt_box_xywh is None:
                 return False
@@ -132,7 +135,8 @@ class PresenterTracker:
 
             truth = frame.payload(StudioTruth)
             label_map = frame.payload(StudioLabels)
-            parts = dict(truth.presenter_part_boxes or {}) if truth is not None else {}
+            parts: Mapping[str, XYWH | None] = (
+                dict(truth.presenter_part_boxes or {}) if truth is not None else {})
             labels = label_map.labels if label_map is not None else None
             if p.use_part_boxes and labels is not None and parts:
                 from engine.studio.scene import LABEL_HEAD, LABEL_LEGS, LABEL_TORSO
@@ -141,7 +145,8 @@ class PresenterTracker:
                     labels, {"head": LABEL_HEAD, "torso": LABEL_TORSO, "legs": LABEL_LEGS})
             if p.use_part_boxes and len(parts) >= 2 and all(parts.values()):
                 # the built-in studio's per-part truth stands in for the operator's patches
-                model = model_from_parts(bgr, frame.gt_box_xywh, parts, p.n_bins,
+                boxes = {k: b for k, b in parts.items() if b is not None}  # all, as checked
+                model = model_from_parts(bgr, frame.gt_box_xywh, boxes, p.n_bins,
                                          grey_world=p.grey_world)
             else:
                 model = model_from_box(bgr, frame.gt_box_xywh, p.auto_patches, p.n_bins,
@@ -195,7 +200,7 @@ class PresenterTracker:
         overlay = Overlay(
             points_uv=out.particles_xyh[:, :2].astype(np.float32),
             point_weights=(out.weights / (wmax or 1.0)).astype(np.float32),
-            boxes_xywh=tuple(tuple(float(v) for v in b) for b in boxes),  # type: ignore[misc]
+            boxes_xywh=tuple(xywh(b) for b in boxes),
             box_labels=("presenter", *self._view.model.names),
             crosshair_uv=(fx, fy),
         )
