@@ -16,65 +16,35 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from engine.arrays import u8
 from engine.dense.params import DenseParams
-from engine.errors import ParamsError, TrackerError
+from engine.errors import TrackerError
 from engine.frames import readonly
 from engine.keyframes.fusion import PosedFrame
 from engine.keyframes.store import KeyframeStore
+from engine.params import Params, param
 from engine.sources.base import Source
 
 F64 = NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)
-class SweepParams:
+class SweepParams(Params):
     """Keyframe selection and frame keeping while recording (units in the names)."""
 
-    kf_add_dist_m: float = field(
-        default=0.15,
-        metadata={
-            "help": "add a keyframe when this far from all others (m)",
-            "min": 0.01,
-            "max": 5.0,
-            "step": 0.01,
-        },
-    )
-    kf_add_angle_deg: float = field(
-        default=10.0,
-        metadata={
-            "help": "...or turned this much from all others (deg)",
-            "min": 0.5,
-            "max": 90.0,
-            "step": 0.5,
-        },
-    )
-    keep_every: int = field(
-        default=2,
-        metadata={"help": "keep every n-th tracked frame for depth fusion", "min": 1, "max": 30},
-    )
-    max_kept_frames: int = field(
-        default=400,
-        metadata={
-            "help": "at most this many frames kept for fusion (memory)",
-            "min": 0,
-            "max": 5000,
-        },
-    )
-    max_frames: int = field(
-        default=0, metadata={"help": "stop after this many frames (0: all)", "min": 0}
-    )
-
-    def __post_init__(self) -> None:
-        if self.kf_add_dist_m <= 0 or self.kf_add_angle_deg <= 0:
-            raise ParamsError("keyframe thresholds must be positive")
-        if self.keep_every < 1 or self.max_kept_frames < 0 or self.max_frames < 0:
-            raise ParamsError("keep_every must be >= 1, max_kept_frames and max_frames >= 0")
+    kf_add_dist_m: float = param(0.15, lo=0.01, hi=5.0, step=0.01,
+                                 help="add a keyframe when this far from all others (m)")
+    kf_add_angle_deg: float = param(10.0, lo=0.5, hi=90.0, step=0.5,
+                                    help="...or turned this much from all others (deg)")
+    keep_every: int = param(2, lo=1, hi=30, help="keep every n-th tracked frame for depth fusion")
+    max_kept_frames: int = param(400, lo=0, hi=5000,
+                                 help="at most this many frames kept for fusion (memory)")
+    max_frames: int = param(0, lo=0, help="stop after this many frames (0: all)")
 
 
 @dataclass(frozen=True, slots=True)
