@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import math
 import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -36,6 +35,7 @@ from types import MappingProxyType
 from typing import Any, ClassVar, Self, TypeVar, cast
 
 from engine.errors import ParamsError
+from engine.validate import shown, violation
 
 T = TypeVar("T")
 
@@ -167,11 +167,13 @@ def _check_value(c: _Check, v: object) -> str | None:
     values = v if isinstance(v, tuple) else (v,)
     for x in values:
         if _is_number(x):
-            xf = float(cast(float, x))
-            if not math.isfinite(xf):
-                return f"must be finite, got {v!r}"
-            if (c.lo is not None and xf < c.lo) or (c.hi is not None and xf > c.hi):
-                return f"must be {_range_text(c.lo, c.hi)}, got {v!r}"
+            rule = violation(x, lo=c.lo, hi=c.hi)  # exact: a 400-digit int is no OverflowError
+            if rule == "finite":
+                return f"must be finite, got {shown(v)}"
+            if rule == "range":
+                if c.lo is None and c.hi is None:
+                    return f"must be a number, got {shown(v)}"
+                return f"must be {_range_text(c.lo, c.hi)}, got {shown(v)}"
     if c.choices is not None and v not in c.choices:
         return f"{v!r} is not one of {', '.join(map(str, c.choices))}"
     return None

@@ -240,16 +240,16 @@ def _convert(text: str, hint: Any, key: str) -> Any:
         if low in _FALSE:
             return False
         raise ValueError("expected true or false")
-    if hint is int:
+    if hint is int or hint is float:  # the validated path: finite, no 400-digit integers
+        from engine.validate import number
+
         try:
-            return int(text)
-        except ValueError:
-            raise ValueError("expected an integer") from None
-    if hint is float:
-        try:
-            return float(text)
-        except ValueError:
-            raise ValueError("expected a number") from None
+            return number(text, "value", integer=hint is int, text=True, error=ValueError)
+        except ValueError as exc:
+            msg = str(exc).removeprefix("value ")
+            if msg.startswith(("must be an integer", "must be a number")):
+                msg = "expected an integer" if hint is int else "expected a number"
+            raise ValueError(msg) from None
     if hint is str:
         return text
     if isinstance(hint, type) and issubclass(hint, enum.Enum):
@@ -317,7 +317,8 @@ def apply_param_overrides(params: Any, items: list[str] | tuple[str, ...]) -> An
                 )
             changes[key] = _convert(value.strip(), hint, key)
         except ValueError as exc:
-            raise ParamsError(f"--param {key}={value}: {exc}") from None
+            short = value if len(value) <= 40 else value[:37] + "..."
+            raise ParamsError(f"--param {key}={short}: {exc}") from None
     try:
         return dataclasses.replace(params, **changes) if changes else params
     except (TypeError, ValueError) as exc:

@@ -113,6 +113,22 @@ def number(
     return int(v) if integer else float(v)
 
 
+def violation(value: object, *, lo: float | None = None, hi: float | None = None,
+              limit: float = math.inf) -> str | None:
+    """Which rule a (non-bool, real) number breaks: ``"finite"``, ``"range"`` or None.
+
+    The comparison is exact (no float conversion of integers), so a 400-digit integer is
+    simply out of range, never an ``OverflowError``; :mod:`engine.params` checks its fields
+    with it.
+    """
+    v: float | int = int(value) if isinstance(value, numbers.Integral) else float(value)  # type: ignore[arg-type]
+    if isinstance(v, float) and not math.isfinite(v):
+        return "finite"
+    if (lo is not None and v < lo) or (hi is not None and v > hi) or abs(v) > limit:
+        return "range"
+    return None
+
+
 def _is_int_text(text: str) -> bool:
     t = text[1:] if text[:1] in "+-" else text
     return t.isdigit() and t.isascii()

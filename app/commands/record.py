@@ -78,6 +78,9 @@ def _run(args: argparse.Namespace) -> int:
     if summary is not None:
         result["outputs"] = summary
     emit_json(result)
+    if summary is not None and summary.get("nothing_sent"):
+        raise SessionError(f"outputs: nothing could be sent ({summary['problem']}); the "
+                           f"session was recorded in {args.out}")
     return stop.exit_code if stop() and not source.live else 0
 
 

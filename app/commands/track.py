@@ -158,6 +158,7 @@ def run(args: argparse.Namespace) -> int:
     summary["out"] = str(out_path)
     summary["partial"] = partial
     summary["stop_reason"] = reason
+    summary["skipped_frames"] = guarded.frames_skipped
     if send.summary is not None:
         summary["outputs"] = send.summary
     input_stats = _input_stats(guarded)

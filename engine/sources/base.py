@@ -120,6 +120,10 @@ class StopOnError(Source):
         self.live = inner.live
         self.error: Exception | None = None
         self.frames_read = 0
+        #: frames the source dropped before the ones read (``Frame.skipped_before``, e.g. a
+        #: live camera's frames the engine was too busy for) plus those it never pairs (TUM
+        #: colour images without depth)
+        self.frames_skipped = int(getattr(inner, "dropped_rgb", 0) or 0)
         self.last_frame: Frame | None = None
 
     @property
@@ -156,6 +160,7 @@ class StopOnError(Source):
                 self.error = exc
                 return
             self.frames_read += 1
+            self.frames_skipped += int(getattr(frame, "skipped_before", 0) or 0)
             self.last_frame = frame
             yield frame
 

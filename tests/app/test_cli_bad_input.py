@@ -91,7 +91,7 @@ def test_a_source_error_mid_run_keeps_the_frames_before_it(tmp_path: Path) -> No
     assert "truncated PNG" in o.stderr[0]
     assert "the 6 frames before it were written" in o.stderr[0]
     res = _json(o.stdout)
-    assert (res["frames"], res["partial"]) == (6, True)
+    assert (res["frames"], res["partial"], res["skipped_frames"]) == (6, True, 0)
     assert len(out.read_text().splitlines()) == 1 + 6
 
 

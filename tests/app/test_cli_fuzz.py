@@ -502,3 +502,31 @@ def test_boundary_module_error_and_os_error_are_one_line_exit_2(
     monkeypatch.setattr(eval_cmd, "evaluate_files", os_error)
     o = run_cli(["eval", "--gt", "a", "--est", "b"])
     assert (o.rc, o.stderr) == (2, ["studiotrack: error: /some/file: Permission denied"])
+
+
+def test_every_trackers_params_refuse_absurd_values(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """``track --param FIELD=VALUE`` for every numeric field of every registered tracker
+    (a new tracker is covered automatically) with values no field may take."""
+    import dataclasses
+
+    from engine.trackers import available_trackers
+
+    monkeypatch.chdir(tmp_path)
+    problems, n = [], 0
+    for name, spec in available_trackers().items():
+        defaults = spec.params_cls()
+        for f in dataclasses.fields(spec.params_cls):
+            value = getattr(defaults, f.name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                continue
+            for bad in (BIG, "nan", "-inf", "1e400", "abc", ""):
+                n += 1
+                argv = ["track", TINY, "--tracker", name, "--param", f"{f.name}={bad}",
+                        "--out", str(tmp_path / "o.txt")]
+                o = run_cli(argv)
+                why = o.problem()
+                if why:
+                    problems.append(f"studiotrack {' '.join(argv)[:160]}\n    -> {why}")
+    assert n > 50
+    assert not problems, "\n".join(problems)
