@@ -108,3 +108,19 @@ def test_engine_source_has_no_qt_import_statements() -> None:
             ):
                 offenders.append(f"{path.relative_to(ROOT)}: {s}")
     assert not offenders, offenders
+
+
+def test_every_top_level_engine_module_has_a_layer() -> None:
+    """import-linter checks only the modules its layers name: a new top-level module of
+    engine/ must get a place in the "engine layers" contract of pyproject.toml."""
+    import tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    contract = next(c for c in config["tool"]["importlinter"]["contracts"]
+                    if c.get("containers") == ["engine"] and c["type"] == "layers")
+    placed = {name.strip(" ()") for layer in contract["layers"] for name in layer.split(":")}
+    present = {p.stem if p.is_file() else p.name for p in (ROOT / "engine").iterdir()
+               if (p.suffix == ".py" and p.stem != "__init__")
+               or (p.is_dir() and (p / "__init__.py").exists())}
+    assert present - placed == set(), (
+        f"engine modules with no layer in pyproject.toml: {sorted(present - placed)}")
