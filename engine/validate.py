@@ -121,7 +121,12 @@ def violation(value: object, *, lo: float | None = None, hi: float | None = None
     simply out of range, never an ``OverflowError``; :mod:`engine.params` checks its fields
     with it.
     """
-    v: float | int = int(value) if isinstance(value, numbers.Integral) else float(value)  # type: ignore[arg-type]
+    if isinstance(value, numbers.Integral):
+        v: float | int = int(value)
+    elif isinstance(value, numbers.Real):
+        v = float(value)
+    else:
+        return "finite"  # not a real number at all (the callers check the type first)
     if isinstance(v, float) and not math.isfinite(v):
         return "finite"
     if (lo is not None and v < lo) or (hi is not None and v > hi) or abs(v) > limit:
