@@ -127,10 +127,7 @@ def run(args: argparse.Namespace) -> int:
             f"({total or 'unknown number of'} frames)")
         every = max(1, (total or 100) // 10)
 
-        skipped = [0]  # frames a live source dropped because tracking was slower
-
         def progress(rec: FrameRecord) -> None:
-            skipped[0] += rec.frame.skipped_before
             if (rec.seq + 1) % every == 0:
                 log(f"  frame {rec.seq + 1}/{total or '?'}  {rec.result.state.value}"
                     f"  {rec.process_ms:.1f} ms")
@@ -165,7 +162,6 @@ def run(args: argparse.Namespace) -> int:
     if input_stats:
         summary["input"] = input_stats
     summary["warnings"] = notes
-    summary["skipped_frames"] = skipped[0]
     for note in summary.get("notes", []):
         log(f"note: {note}")
     for note in notes:
