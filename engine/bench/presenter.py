@@ -2,16 +2,22 @@
 
 Side by side in one process, on the same preloaded frames (decoding is not timed):
 
-- sequences: the built-in studio with a walking presenter (exact boxes), and the real
-  ``otb_girl``, ``otb_kitesurf``, ``mil_david`` from ``../shared/data`` (every tracker starts
-  from the first ground-truth box; the presenter model splits it into 3 patches);
+- sequences (``engine.bench.presenter_data``): built-in studio variants (seeds, presenters,
+  lighting, camera paths, image sizes, a second person) with exact boxes, and the real
+  ``otb_girl``, ``otb_kitesurf``, ``mil_david`` from ``../shared/data``; every tracker starts
+  from the first ground-truth box (the presenter model splits it into 3 patches, or uses the
+  studio's part boxes);
 - per sequence and tracker: OTB success AUC, precision at 20 px (``engine.evaluation.boxes``)
   and frames/s = 1 / median per-frame ``track()`` time (first frame, the initialisation,
-  excluded);
+  excluded). ``presenter`` is the shipped default, ``paper`` the paper's filter as published
+  (``PAPER_PRESET``), ``presenter_noloss`` the default with the loss test off;
+- ``presenter.success_auc_heldout``: leave-one-sequence-out (``engine.bench.presenter_loo``):
+  the defaults chosen on all the other sequences, run on this one;
 - speed: the presenter tracker at 640x480 with 100 particles and 3 patches;
-- loss: presenter leaves the frame and returns: frames from leaving to LOST, frames from
-  being back in view to TRACKING on it again, and whether it ever claimed TRACKING while the
-  presenter was away (a false lock);
+- loss (``engine.bench.presenter_scenarios``): the desk scenario (frames to LOST, frames to
+  re-acquire, false locks) and a normal walk (false LOST frames), for the default and the
+  paper preset;
+- distractor: a second person crossing in front, standing beside, walking behind;
 - jitter: presenter standing still: std of the jitter-filtered output (px), with the raw
   std beside it; lag of the filter at walking speed (closed form and measured).
 
@@ -21,136 +27,73 @@ Timings are medians on a shared machine: noisy, compare within one run.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from engine.bench import BenchSpec
+from engine.bench.presenter_data import REAL_SEQUENCES, SEQUENCES, STUDIO_SEQUENCES, load
 from engine.frames import Frame
 from engine.progress import log
 from engine.shared_data import shared_data_dir
 
-HELP = "presenter particle filter vs OpenCV KCF/MIL/CSRT (OTB metrics, loss, jitter)"
+HELP = ("presenter particle filter vs OpenCV KCF/MIL/CSRT (OTB metrics, leave-one-out "
+        "defaults, paper preset, loss, distractor, jitter)")
 
-ALL_SEQUENCES = ("studio", "otb_girl", "otb_kitesurf", "mil_david")
-COLOUR_SEQUENCES = ("studio", "otb_girl", "otb_kitesurf")
-ALL_TRACKERS = ("presenter", "kcf", "mil", "csrt", "presenter_noloss")
-DEFAULT_TRACKERS = ("presenter", "kcf", "mil", "csrt", "presenter_noloss")
+ALL_SEQUENCES = tuple(SEQUENCES)
+COLOUR_SEQUENCES = tuple(s.name for s in (*STUDIO_SEQUENCES, *REAL_SEQUENCES) if s.colour)
+ALL_TRACKERS = ("presenter", "paper", "kcf", "mil", "csrt", "presenter_noloss")
+DEFAULT_TRACKERS = ALL_TRACKERS
+
+__all__ = ["ALL_SEQUENCES", "BENCHES", "run", "shared_data_dir"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=0,
-                        help="at most N frames per sequence (0 = all; studio default 300)")
+                        help="at most N frames per sequence (0 = all; studio 300)")
     parser.add_argument("--sequences", default=",".join(ALL_SEQUENCES),
                         help=f"comma list from {','.join(ALL_SEQUENCES)}")
     parser.add_argument("--trackers", default=",".join(DEFAULT_TRACKERS),
                         help=f"comma list from {','.join(ALL_TRACKERS)}")
     parser.add_argument("--particles", type=int, default=100, help="presenter particles")
-    parser.add_argument("--skip-loss", action="store_true", help="skip the loss scenario")
+    parser.add_argument("--search-frames", type=int, default=200,
+                        help="leave-one-out search: frames of each sequence a candidate runs "
+                             "on (the held-out run uses the whole sequence)")
+    parser.add_argument("--skip-loo", action="store_true",
+                        help="skip the leave-one-sequence-out default selection")
+    parser.add_argument("--skip-loss", action="store_true", help="skip the loss scenarios")
     parser.add_argument("--skip-jitter", action="store_true", help="skip the jitter scenario")
-
-
-# ------------------------------------------------------------------------------ sequences
-
-
-#: built-in studio specs of the three scenarios (static frontal camera, walking presenter)
-#: (``walk`` on the moving rail camera, like the robot-mounted frontal camera; ``still`` and
-#: ``leave`` on a static camera so that "in view" has one meaning)
-STUDIO_SPECS = {
-    "walk": "synthetic:frames={n},seed=3,presenter=1,path=rail",
-    "walk_static": "synthetic:frames={n},seed=3,presenter=1,path=static",
-    "still": "synthetic:frames={n},seed=3,presenter=1,path=static,presenter_mode=still",
-    "leave": "synthetic:frames={n},seed=3,presenter=1,path=static,presenter_mode=leave,"
-             "presenter_leave=40,presenter_return=150",
-}
-_CACHE: dict[str, list[Frame]] = {}
-
-
-def _synthetic_available() -> bool:
-    try:
-        import engine.sources.synthetic  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _frames_from_scene(n: int, **kw: Any) -> list[Frame]:
-    from engine.presenter.scene import presenter_frames
-
-    return [Frame(index=f.index, timestamp_s=f.index / 30.0, color_bgr=f.bgr,
-                  gt_box_xywh=f.box_xywh)
-            for f in presenter_frames(n, **kw)]
-
-
-def _presenter_pixels(f: Frame) -> float:
-    """Visible presenter pixels (the studio's labels); without them 1 if a box, else 0."""
-    from engine.studio.sim import StudioTruth
-
-    truth = f.payload(StudioTruth)
-    if truth is not None and truth.presenter_pixels is not None:
-        return float(truth.presenter_pixels)
-    return 0.0 if f.gt_box_xywh is None else 1.0
-
-
-def _det(r: Any) -> Any:
-    from engine.trackers.presenter import PresenterDetails
-
-    d = r.details_as(PresenterDetails)
-    if d is None:
-        raise RuntimeError("presenter result without details (not initialised)")
-    return d
-
-
-def studio_frames(n: int, scenario: str = "walk") -> tuple[list[Frame], str]:
-    """Frames of the built-in studio (``synthetic:``) or, if absent, of the unit-test scene."""
-    if _synthetic_available():
-        from engine.sources import open_source
-
-        spec = STUDIO_SPECS[scenario].format(n=n)
-        if spec not in _CACHE:
-            with open_source(spec) as src:
-                _CACHE[spec] = [f for _, f in zip(range(n), src.frames(), strict=False)]
-        return _CACHE[spec], spec
-    kw: dict[str, Any] = {"width": 640, "height": 480, "seed": 3, "speed_px": 3.0}
-    if scenario == "still":
-        kw["still"] = True
-    elif scenario == "leave":
-        kw["leave"] = (n // 3, n // 3 + max(n // 6, 20))
-    return _frames_from_scene(n, **kw), f"fallback scene ({scenario})"
-
-
-def otb_frames(name: str, n: int) -> list[Frame]:
-    from engine.sources.otb import OtbSource
-
-    src = OtbSource(shared_data_dir() / name)
-    return [f for _, f in zip(range(n or len(src)), src.frames(), strict=False)]
+    parser.add_argument("--skip-distractor", action="store_true",
+                        help="skip the second-person scenarios")
 
 
 # ------------------------------------------------------------------------------ running
 
 
-def _make(name: str, particles: int) -> Any:
+def presenter_params(kind: str = "presenter", particles: int = 100, **changes: Any) -> Any:
+    """The shipped default (``presenter``), the paper preset (``paper``) or the default
+    without loss test (``presenter_noloss``), with ``changes`` on top."""
     from engine.presenter.params import PresenterParams
+
+    p = PresenterParams()
+    if kind == "paper":
+        p = p.with_preset("paper")
+    p = dataclasses.replace(p, n_particles=particles)
+    if kind == "presenter_noloss":
+        # loss test off: its accuracy when it never holds a last position - reported beside
+        # the default, not instead of it
+        p = dataclasses.replace(p, loss_test="likelihood", loss_percent=0.0)
+    return dataclasses.replace(p, **changes) if changes else p
+
+
+def make_tracker(name: str, particles: int = 100, **changes: Any) -> Any:
     from engine.trackers import create_tracker
 
-    if name == "presenter":
-        return create_tracker("presenter", PresenterParams(n_particles=particles))
-    if name == "presenter_noloss":
-        # the same filter with the loss test off (loss_percent 0): its accuracy when it never
-        # holds a last position - reported beside the default, not instead of it
-        return create_tracker("presenter", PresenterParams(n_particles=particles,
-                                                           loss_percent=0.0))
+    if name in ("presenter", "paper", "presenter_noloss"):
+        return create_tracker("presenter", presenter_params(name, particles, **changes))
     return create_tracker(name)
-
-
-def _size(frame: Frame) -> tuple[int, int]:
-    """(height, width) of a frame's image."""
-    if frame.color_bgr is None:
-        raise ValueError(f"frame {frame.index} has no image")
-    h, w = frame.color_bgr.shape[:2]
-    return h, w
 
 
 def run_tracker(tracker: Any, frames: list[Frame]) -> tuple[list[Any], np.ndarray]:
@@ -163,7 +106,7 @@ def run_tracker(tracker: Any, frames: list[Frame]) -> tuple[list[Any], np.ndarra
     return results, np.asarray(times)
 
 
-def score(frames: list[Frame], results: list[Any], times: np.ndarray) -> dict[str, float | None]:
+def score(frames: list[Frame], results: list[Any], times: np.ndarray) -> dict[str, Any]:
     from engine.evaluation.boxes import box_scores
 
     gt = np.array([f.gt_box_xywh if f.gt_box_xywh is not None else (np.nan,) * 4
@@ -176,41 +119,96 @@ def score(frames: list[Frame], results: list[Any], times: np.ndarray) -> dict[st
             "fps": round(1.0 / med, 1) if med > 0 else None, "n_scored": s.n_frames}
 
 
-def loss_scenario(n: int) -> dict[str, Any]:
-    from engine.trackers.base import TrackState
+def _auc(frames: list[Frame], params: Any) -> float:
+    from engine.trackers import create_tracker
 
-    frames, spec = studio_frames(n, "leave")
-    tracker = _make("presenter", 100)
-    results, _ = run_tracker(tracker, frames)
-    # "left" = less than half of the presenter's pixels still in view; "back" = more than
-    # half again (pixel counts from the renderer's labels; gt None means none in view)
-    pix = np.array([_presenter_pixels(f) for f in frames])
-    full = float(pix[0]) if pix[0] > 0 else 1.0
-    present = pix >= 0.5 * full
-    leave = next((i for i, p in enumerate(present) if not p), None)
-    back = next((i for i in range(leave or 0, len(present)) if present[i]), None) \
-        if leave is not None else None
-    out: dict[str, Any] = {"source": spec, "leave_frame": leave, "return_frame": back}
-    if leave is None or back is None:
-        out["error"] = "the scenario has no leave/return"
-        return out
-    lost = next((i for i in range(leave, back) if results[i].state == TrackState.LOST), None)
-    out["frames_to_detect"] = None if lost is None else lost - leave
-    # a false lock: claiming TRACKING after the loss while the presenter is not in view
-    out["false_lock_frames"] = int(sum(
-        1 for i in range(lost if lost is not None else leave, back)
-        if results[i].state == TrackState.TRACKING and pix[i] < 0.5 * full))
-    out["false_lock"] = out["false_lock_frames"] > 0
+    res, times = run_tracker(create_tracker("presenter", params), frames)
+    return float(score(frames, res, times)["success_auc"])
 
-    def on_target(i: int) -> bool:
-        from engine.evaluation.boxes import iou_xywh
 
-        r, g = results[i], frames[i].gt_box_xywh
-        return (r.state == TrackState.TRACKING and g is not None and r.box_xywh is not None
-                and float(iou_xywh(np.array(g), np.array(r.box_xywh))[0]) > 0.3)
+# ------------------------------------------------------------------------------ parts
 
-    re = next((i for i in range(back, len(frames)) if on_target(i)), None)
-    out["frames_to_reacquire"] = None if re is None else re - back
+
+def _loo(seqs: list[str], args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench import presenter_loo as loo
+    from engine.bench import presenter_scenarios as sc
+    from engine.presenter.params import PresenterParams
+
+    cache: dict[tuple[Any, str, int], float] = {}
+    feasible_cache: dict[Any, bool] = {}
+
+    def auc_n(c: loo.Overrides, seq: str, n: int) -> float:
+        key = (c, seq, n)
+        if key not in cache:
+            cache[key] = _auc(load(seq, args.frames)[:n] if n else load(seq, args.frames),
+                              presenter_params("presenter", args.particles, **dict(c)))
+        return cache[key]
+
+    def feasible(c: loo.Overrides) -> bool:
+        if c not in feasible_cache:
+            def run(frames: list[Frame]) -> list[Any]:
+                t = make_tracker("presenter", args.particles, **dict(c))
+                return [t.track(f) for f in frames]
+            desk = sc.desk_loss(run, "check")
+            walk = sc.walk_false_lost(run, "check")
+            feasible_cache[c] = sc.meets_loss_goals(desk, walk)
+        return feasible_cache[c]
+
+    n_search = max(args.search_frames, 2)
+    t0 = time.process_time()
+    log(f"leave-one-out over {len(seqs)} sequences ({n_search} frames each for the search)")
+    out = loo.run_loo(seqs, [s for s in seqs if SEQUENCES[s].studio],
+                      auc=lambda c, s: auc_n(c, s, n_search), feasible=feasible,
+                      heldout_auc=lambda c, s: auc_n(c, s, 0))
+    out["protocol"] = (
+        "per held-out sequence: coarse grid then one-knob moves on the other sequences' "
+        f"first {n_search} frames (mean of the studio mean and the real mean), candidates "
+        "missing the loss goals on the check scenarios excluded; held-out run on the whole "
+        "sequence")
+    out["knobs"] = {k.name: list(k.values) for k in (*loo.COARSE, *loo.FINE)}
+    out["candidates_feasible"] = int(sum(feasible_cache.values()))
+    out["candidates_checked"] = len(feasible_cache)
+    out["runs"] = len(cache)
+    out["shipped_default_matches"] = loo.shipped_matches(out["global_choice"],
+                                                        PresenterParams())
+    out["cpu_s"] = round(time.process_time() - t0, 1)
+    return out
+
+
+def _loss(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench import presenter_scenarios as sc
+
+    out: dict[str, Any] = {}
+    for kind in ("presenter", "paper"):
+        def run(frames: list[Frame], kind: str = kind) -> list[Any]:
+            t = make_tracker(kind, args.particles)
+            return [t.track(f) for f in frames]
+        desk = sc.desk_loss(run, "report")
+        walk = sc.walk_false_lost(run, "report")
+        entry = {**desk, "false_lost_frames": walk["false_lost_frames"],
+                 "walk_source": walk["source"], "walk_frames_in_view": walk["frames_in_view"],
+                 "goals_met": sc.meets_loss_goals(desk, walk)}
+        if kind == "presenter":
+            out.update(entry)
+        else:
+            out["paper"] = entry
+    return out
+
+
+def _distractor(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench import presenter_scenarios as sc
+
+    out: dict[str, Any] = {}
+    for case in sc.DISTRACTOR:
+        out[case] = {}
+        for kind in ("presenter", "paper"):
+            def run(frames: list[Frame], kind: str = kind) -> list[Any]:
+                t = make_tracker(kind, args.particles)
+                return [t.track(f) for f in frames]
+            out[case][kind] = sc.distractor(run, case)
+        src = out[case]["presenter"].pop("source")
+        out[case]["paper"].pop("source")
+        out[case]["source"] = src
     return out
 
 
@@ -223,23 +221,42 @@ def _lag_frames_measured(raw: np.ndarray, filt: np.ndarray, max_lag: int = 40) -
     c = np.asarray(costs)
     k = int(np.argmin(c))
     if 0 < k < len(c) - 1:
-        den = float(c[k - 1] - 2 * c[k] + c[k + 1])
+        den = c[k - 1] - 2 * c[k] + c[k + 1]
         if den > 0:
-            return k + 0.5 * float(c[k - 1] - c[k + 1]) / den
+            return float(k + 0.5 * (c[k - 1] - c[k + 1]) / den)
     return float(k)
 
 
-def jitter_scenario(n: int) -> dict[str, Any]:
+def _det(r: Any) -> Any:
+    from engine.trackers.presenter import PresenterDetails
+
+    d = r.details_as(PresenterDetails)
+    if d is None:
+        raise RuntimeError("presenter result without details (not initialised)")
+    return d
+
+
+def _filtered(r: Any) -> tuple[float, float, float]:
+    return tuple(_det(r).filtered_xyh)  # type: ignore[return-value]
+
+
+def _raw(r: Any) -> tuple[float, float, float]:
+    return tuple(_det(r).raw_xyh)  # type: ignore[return-value]
+
+
+def jitter_scenario(n: int, particles: int = 100) -> dict[str, Any]:
+    from engine.bench.presenter_scenarios import frames_of
     from engine.presenter.jitter import ramp_lag_frames
 
-    frames, spec = studio_frames(n, "still")
-    fps = float(frames[1].timestamp_s - frames[0].timestamp_s) if len(frames) > 1 else 0.0
-    fps = 1.0 / fps if fps > 0 else 30.0
-    tracker = _make("presenter", 100)
+    spec = f"synthetic:frames={n},seed=3,presenter=1,path=static,presenter_mode=still"
+    frames = frames_of(spec)
+    dt = float(frames[1].timestamp_s - frames[0].timestamp_s) if len(frames) > 1 else 0.0
+    fps = 1.0 / dt if dt > 0 else 30.0
+    tracker = make_tracker("presenter", particles)
     results, _ = run_tracker(tracker, frames)
     settle = min(30, n // 3)
-    filt = np.array([_det(r).filtered_xyh[:2] for r in results[settle:]])
-    raw = np.array([_det(r).raw_xyh[:2] for r in results[settle:]])
+    filt = np.array([_filtered(r)[:2] for r in results[settle:]])
+    raw = np.array([_raw(r)[:2] for r in results[settle:]])
     p = tracker.params
     out: dict[str, Any] = {
         "source": spec,
@@ -248,11 +265,11 @@ def jitter_scenario(n: int) -> dict[str, Any]:
         "cutoff_hz": p.jitter_cutoff_hz,
     }
     # lag at walking speed
-    wframes, _ = studio_frames(n, "walk_static")
-    wtracker = _make("presenter", 100)
-    wres, _ = run_tracker(wtracker, wframes)
-    fx = np.array([_det(r).filtered_xyh[0] for r in wres])
-    rx = np.array([_det(r).raw_xyh[0] for r in wres])
+    wspec = f"synthetic:frames={n},seed=3,presenter=1,path=static"
+    wframes = frames_of(wspec)
+    wres, _ = run_tracker(make_tracker("presenter", particles), wframes)
+    fx = np.array([_filtered(r)[0] for r in wres])
+    rx = np.array([_raw(r)[0] for r in wres])
     gtx = np.array([f.gt_box_xywh[0] + f.gt_box_xywh[2] / 2 if f.gt_box_xywh else np.nan
                     for f in wframes])
     speed = float(np.nanmedian(np.abs(np.diff(gtx)))) if len(gtx) > 2 else float("nan")
@@ -261,7 +278,52 @@ def jitter_scenario(n: int) -> dict[str, Any]:
     out["lag_frames"] = round(lag_theory, 2)
     out["lag_s"] = round(lag_theory / fps, 3)
     out["lag_px"] = round(lag_theory * speed, 2)
-    out["lag_frames_measured"] = round(_lag_frames_measured(rx, fx), 2) if len(rx) > 60 else None
+    out["lag_frames_measured"] = round(_lag_frames_measured(rx, fx), 2) if len(rx) > 60 \
+        else None
+    return out
+
+
+def _speed(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench.presenter_scenarios import frames_of
+
+    # per-frame cost with 100 particles and 3 patches: the static-camera walk, loss test off
+    # so that every frame runs the tracking set (no 600-particle search frames)
+    spec = f"synthetic:frames={min(args.frames or 300, 300)},seed=3,presenter=1,path=static"
+    frames = frames_of(spec)
+    tracker = make_tracker("presenter_noloss", 100)
+    res, times = run_tracker(tracker, frames)
+    h, w = frames[0].color_bgr.shape[:2]  # type: ignore[union-attr]
+    stages = {k: round(float(np.median([r.timings_ms.get(k, np.nan) for r in res[1:]])), 3)
+              for k in ("motion_ms", "predict_ms", "likelihood_ms", "total_ms")}
+    out = {"source": spec, "size": f"{w}x{h}", "particles": 100,
+           "patches": len(tracker.model.patches),
+           "fps": round(1.0 / float(np.median(times[1:])), 1),
+           "fps_mean": round(len(times[1:]) / float(np.sum(times[1:])), 1),
+           "median_stage_ms": stages}
+    log(f"speed {w}x{h} 100 particles {out['patches']} patches: {out['fps']} fps (median), "
+        f"stages {stages}")
+    return out
+
+
+def _summary(results: dict[str, Any], key: str, seqs: list[str]) -> dict[str, Any] | None:
+    have = [s for s in seqs if s in results and "presenter" in results[s]]
+    if not have or not all("csrt" in results[s] for s in have):
+        return None
+    pa = float(np.mean([results[s]["presenter"]["success_auc"] for s in have]))
+    ca = float(np.mean([results[s]["csrt"]["success_auc"] for s in have]))
+    pf = float(np.median([results[s]["presenter"]["fps"] for s in have]))
+    cf = float(np.median([results[s]["csrt"]["fps"] for s in have]))
+    out: dict[str, Any] = {"sequences": have, "presenter_mean_auc": round(pa, 4),
+                           "csrt_mean_auc": round(ca, 4), "auc_gap_to_csrt": round(ca - pa, 4),
+                           "fps_ratio_to_csrt": round(pf / cf, 1) if cf else None}
+    if all("success_auc_heldout" in results[s]["presenter"] for s in have):
+        out["presenter_mean_auc_heldout"] = round(float(np.mean(
+            [results[s]["presenter"]["success_auc_heldout"] for s in have])), 4)
+    if all("paper" in results[s] for s in have):
+        out["paper_mean_auc"] = round(float(np.mean(
+            [results[s]["paper"]["success_auc"] for s in have])), 4)
+    out["goal_auc_met"] = pa >= ca
+    out["goal_fps_met"] = bool(cf and pf / cf >= 10.0)
     return out
 
 
@@ -273,66 +335,43 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if bad:
         from engine.errors import StudioTrackError
 
-        raise StudioTrackError(f"bench presenter: unknown sequence/tracker {bad}")
+        raise StudioTrackError(f"bench presenter: unknown sequence/tracker {bad} (sequences: "
+                               f"{', '.join(ALL_SEQUENCES)}; trackers: {', '.join(ALL_TRACKERS)})")
     results: dict[str, Any] = {}
-    loaders: dict[str, Callable[[], list[Frame]]] = {
-        "studio": lambda: studio_frames(args.frames or 300, "walk")[0],
-        "otb_girl": lambda: otb_frames("otb_girl", args.frames),
-        "otb_kitesurf": lambda: otb_frames("otb_kitesurf", args.frames),
-        "mil_david": lambda: otb_frames("mil_david", args.frames),
-    }
+    loaded: list[str] = []
     for seq in seqs:
         try:
-            frames = loaders[seq]()
+            frames = load(seq, args.frames)
         except Exception as exc:  # missing data is reported, the rest still runs
             log(f"{seq}: skipped ({exc})")
             results[seq] = {"error": str(exc)}
             continue
-        h, w = _size(frames[0])
-        log(f"{seq}: {len(frames)} frames {w}x{h}")
+        loaded.append(seq)
         results[seq] = {}
         for name in trackers:
-            res, times = run_tracker(_make(name, args.particles), frames)
+            res, times = run_tracker(make_tracker(name, args.particles), frames)
             sc = score(frames, res, times)
             results[seq][name] = sc
             log(f"  {name:9s} AUC {sc['success_auc']:.3f}  P@20 {sc['precision_20px']:.3f}  "
-                 f"{sc['fps']} fps")
+                f"{sc['fps']} fps")
     out: dict[str, Any] = {}
-    colour = [s for s in COLOUR_SEQUENCES if s in results and "presenter" in results[s]]
-    if colour and all("csrt" in results[s] for s in colour):
-        pa = float(np.mean([results[s]["presenter"]["success_auc"] for s in colour]))
-        ca = float(np.mean([results[s]["csrt"]["success_auc"] for s in colour]))
-        pf = float(np.median([results[s]["presenter"]["fps"] for s in colour]))
-        cf = float(np.median([results[s]["csrt"]["fps"] for s in colour]))
-        out["colour_summary"] = {"sequences": colour, "presenter_mean_auc": round(pa, 4),
-                                 "csrt_mean_auc": round(ca, 4),
-                                 "auc_gap_to_csrt": round(ca - pa, 4),
-                                 "fps_ratio_to_csrt": round(pf / cf, 1) if cf else None}
-    if "studio" in seqs:
-        # per-frame cost with 100 particles and 3 patches: the static-camera walk, loss test
-        # off so that every frame runs the tracking set (no 600-particle search frames)
-        frames, spec = studio_frames(min(args.frames or 300, 300), "walk_static")
-        from engine.presenter.params import PresenterParams
-        from engine.trackers import create_tracker
-
-        tracker = create_tracker("presenter", PresenterParams(n_particles=100,
-                                                              loss_percent=0.0))
-        res, times = run_tracker(tracker, frames)
-        h, w = _size(frames[0])
-        stages = {k: round(float(np.median([r.timings_ms.get(k, np.nan) for r in res[1:]])), 3)
-                  for k in ("motion_ms", "predict_ms", "likelihood_ms", "total_ms")}
-        out["speed"] = {"source": spec, "size": f"{w}x{h}", "particles": 100,
-                        "patches": len(tracker.model.patches),
-                        "fps": round(1.0 / float(np.median(times[1:])), 1),
-                        "fps_mean": round(len(times[1:]) / float(np.sum(times[1:])), 1),
-                        "median_stage_ms": stages}
-        log(f"speed {w}x{h} 100 particles {len(tracker.model.patches)} patches: "
-             f"{out['speed']['fps']} fps (median), stages {stages}")
+    if not args.skip_loo and len(loaded) >= 3 and "presenter" in trackers:
+        out["loo"] = _loo(loaded, args)
+        for seq, fold in out["loo"]["folds"].items():
+            results[seq]["presenter"]["success_auc_heldout"] = fold["success_auc_heldout"]
+    summary = _summary(results, "colour", [s for s in COLOUR_SEQUENCES if s in loaded])
+    if summary is not None:
+        out["colour_summary"] = summary
+    if any(SEQUENCES[s].studio for s in loaded):
+        out["speed"] = _speed(args)
         if not args.skip_loss:
-            out["loss"] = loss_scenario(max(args.frames or 330, 330))
+            out["loss"] = _loss(args)
             log(f"loss: {out['loss']}")
+        if not args.skip_distractor:
+            out["distractor"] = _distractor(args)
+            log(f"distractor: {out['distractor']}")
         if not args.skip_jitter:
-            out["jitter"] = jitter_scenario(max(args.frames or 200, 120))
+            out["jitter"] = jitter_scenario(max(args.frames or 200, 120), args.particles)
             log(f"jitter: {out['jitter']}")
     return {**results, **out}
 

@@ -252,70 +252,151 @@ def rect_histogram(integral: F32, cell: int, xywh: tuple[float, float, float, fl
 
 
 @njit(cache=True, nogil=True)
-def _colour_residuals(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
-                      img_w: int, img_h: int, particles: F64, rel: F64, aspect: float,
-                      sqrt_ref: F64) -> F64:
+def _rect_b2(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
+             img_w: int, img_h: int, px0: float, py0: float, px1: float, py1: float,
+             sqrt_ref: F64, hist: F64, outside_b2: float) -> float:
+    # B^2 = 1 - sum_n sqrt(q(n) q*(n)) of the image rectangle (px0, py0)-(px1, py1), its part
+    # outside the image counted at outside_b2 per pixel (1: matching nothing)
+    area = (px1 - px0) * (py1 - py0)
+    vx0 = max(px0, 0.0)
+    vy0 = max(py0, 0.0)
+    vx1 = min(px1, float(img_w))
+    vy1 = min(py1, float(img_h))
+    if area <= 0.0:
+        return 1.0
+    if vx1 - vx0 <= 0.0 or vy1 - vy0 <= 0.0:
+        return outside_b2
+    rx0 = min(max(vx0 - ox, 0.0), roi_w)
+    ry0 = min(max(vy0 - oy, 0.0), roi_h)
+    rx1 = min(max(vx1 - ox, 0.0), roi_w)
+    ry1 = min(max(vy1 - oy, 0.0), roi_h)
+    _rect_hist(ih, cell, rx0, ry0, rx1, ry1, hist)
+    total = 0.0
+    for b in range(hist.shape[0]):
+        if hist[b] < 0.0:
+            hist[b] = 0.0
+        total += hist[b]
+    if total <= 1e-9:
+        return 1.0
+    bc = 0.0
+    for b in range(hist.shape[0]):
+        bc += math.sqrt(hist[b] / total) * sqrt_ref[b]
+    vis = min((vx1 - vx0) * (vy1 - vy0) / area, 1.0)
+    return vis * max(1.0 - bc, 0.0) + (1.0 - vis) * outside_b2
+
+
+@njit(cache=True, nogil=True)
+def _patch_residuals(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
+                     img_w: int, img_h: int, particles: F64, rel: F64, aspect: float,
+                     sqrt_ref: F64, outside_b2: float, out: F64) -> None:
     n_part = particles.shape[0]
     n_patch = rel.shape[0]
-    nb = sqrt_ref.shape[1]
-    out = np.empty(n_part)
-    hist = np.empty(nb)
+    hist = np.empty(sqrt_ref.shape[1])
     for i in range(n_part):
-        cx = particles[i, 0]
-        cy = particles[i, 1]
         hh = particles[i, 2]
         ww = hh * aspect
-        left = cx - 0.5 * ww
-        top = cy - 0.5 * hh
-        acc = 0.0
+        left = particles[i, 0] - 0.5 * ww
+        top = particles[i, 1] - 0.5 * hh
         for p in range(n_patch):
-            px0 = left + rel[p, 0] * ww
-            py0 = top + rel[p, 1] * hh
-            px1 = left + rel[p, 2] * ww
-            py1 = top + rel[p, 3] * hh
-            area = (px1 - px0) * (py1 - py0)
-            # visible part in image coordinates, then relative to the ROI
-            vx0 = max(px0, 0.0)
-            vy0 = max(py0, 0.0)
-            vx1 = min(px1, float(img_w))
-            vy1 = min(py1, float(img_h))
-            if area <= 0.0 or vx1 - vx0 <= 0.0 or vy1 - vy0 <= 0.0:
-                acc += 1.0
-                continue
-            rx0 = min(max(vx0 - ox, 0.0), roi_w)
-            ry0 = min(max(vy0 - oy, 0.0), roi_h)
-            rx1 = min(max(vx1 - ox, 0.0), roi_w)
-            ry1 = min(max(vy1 - oy, 0.0), roi_h)
-            _rect_hist(ih, cell, rx0, ry0, rx1, ry1, hist)
-            total = 0.0
-            for b in range(nb):
-                if hist[b] < 0.0:
-                    hist[b] = 0.0
-                total += hist[b]
-            # pixels of the patch outside the image count as matching nothing
-            outside = area - (vx1 - vx0) * (vy1 - vy0)
-            total += max(outside, 0.0)
-            if total <= 1e-9:
-                acc += 1.0
-                continue
-            bc = 0.0
-            for b in range(nb):
-                bc += math.sqrt(hist[b] / total) * sqrt_ref[p, b]
-            acc += max(1.0 - bc, 0.0)  # B_p^2, eq. (2)
-        out[i] = acc
+            # B_p^2, eq. (2)
+            out[i, p] = _rect_b2(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h,
+                                 left + rel[p, 0] * ww, top + rel[p, 1] * hh,
+                                 left + rel[p, 2] * ww, top + rel[p, 3] * hh, sqrt_ref[p],
+                                 hist, outside_b2)
+
+
+def patch_residuals(integral: F32, cell: int, roi_xywh: tuple[int, int, int, int],
+                    image_wh: tuple[int, int], particles_xyh: F64, rel_boxes: F64,
+                    aspect: float, sqrt_ref: F64, outside_b2: float = 1.0) -> F64:
+    """B_p^2 (eq. 2) of every patch p at every particle (x, y, h): shape (particles, patches).
+
+    The part of a patch outside the image counts ``outside_b2`` per pixel: 1 (the default)
+    = matching nothing; less lets the filter follow a person out through the image border.
+    """
+    ox, oy, rw, rh = roi_xywh
+    parts = np.ascontiguousarray(particles_xyh, dtype=np.float64)
+    rel = np.ascontiguousarray(rel_boxes, dtype=np.float64)
+    out = np.empty((parts.shape[0], rel.shape[0]))
+    _patch_residuals(integral, float(cell), float(ox), float(oy), float(rw), float(rh),
+                     int(image_wh[0]), int(image_wh[1]), parts, rel, float(aspect),
+                     np.ascontiguousarray(sqrt_ref, dtype=np.float64), float(outside_b2), out)
     return out
 
 
 def colour_residuals(integral: F32, cell: int, roi_xywh: tuple[int, int, int, int],
                      image_wh: tuple[int, int], particles_xyh: F64, rel_boxes: F64,
-                     aspect: float, sqrt_ref: F64) -> F64:
+                     aspect: float, sqrt_ref: F64, outside_b2: float = 1.0) -> F64:
     """sum_p B_p^2 for every particle (x, y, h): the exponent of eq. (3) times lambda_col."""
+    return patch_residuals(integral, cell, roi_xywh, image_wh, particles_xyh, rel_boxes,
+                           aspect, sqrt_ref, outside_b2).sum(axis=1)
+
+
+@njit(cache=True, nogil=True)
+def _ring_similarity(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
+                     img_w: int, img_h: int, particles: F64, aspect: float, margin: float,
+                     sqrt_ref: F64, out: F64) -> None:
+    nb = sqrt_ref.shape[0]
+    inner = np.empty(nb)
+    outer = np.empty(nb)
+    for i in range(particles.shape[0]):
+        hh = particles[i, 2]
+        ww = hh * aspect
+        cx = particles[i, 0]
+        cy = particles[i, 1]
+        ix0, iy0, ix1, iy1 = cx - 0.5 * ww, cy - 0.5 * hh, cx + 0.5 * ww, cy + 0.5 * hh
+        mx = margin * ww
+        my = margin * hh
+        ox0 = max(ix0 - mx, 0.0)
+        oy0 = max(iy0 - my, 0.0)
+        ox1 = min(ix1 + mx, float(img_w))
+        oy1 = min(iy1 + my, float(img_h))
+        if ox1 - ox0 <= 0.0 or oy1 - oy0 <= 0.0:
+            out[i] = 0.0
+            continue
+        _rect_hist(ih, cell, min(max(ox0 - ox, 0.0), roi_w), min(max(oy0 - oy, 0.0), roi_h),
+                   min(max(ox1 - ox, 0.0), roi_w), min(max(oy1 - oy, 0.0), roi_h), outer)
+        vx0 = min(max(ix0, ox0), ox1)
+        vy0 = min(max(iy0, oy0), oy1)
+        vx1 = min(max(ix1, ox0), ox1)
+        vy1 = min(max(iy1, oy0), oy1)
+        if vx1 > vx0 and vy1 > vy0:
+            _rect_hist(ih, cell, min(max(vx0 - ox, 0.0), roi_w),
+                       min(max(vy0 - oy, 0.0), roi_h), min(max(vx1 - ox, 0.0), roi_w),
+                       min(max(vy1 - oy, 0.0), roi_h), inner)
+        else:
+            inner[:] = 0.0
+        total = 0.0
+        for b in range(nb):
+            outer[b] = max(outer[b] - inner[b], 0.0)
+            total += outer[b]
+        # a ring mostly outside the image says nothing about the size
+        ring_area = (ox1 - ox0) * (oy1 - oy0) - (vx1 - vx0) * (vy1 - vy0)
+        if total <= 1e-9 or ring_area < 0.25 * ((ww + 2 * mx) * (hh + 2 * my) - ww * hh):
+            out[i] = 0.0
+            continue
+        bc = 0.0
+        for b in range(nb):
+            bc += math.sqrt(outer[b] / total) * sqrt_ref[b]
+        out[i] = bc
+
+
+def ring_similarity(integral: F32, cell: int, roi_xywh: tuple[int, int, int, int],
+                    image_wh: tuple[int, int], particles_xyh: F64, aspect: float,
+                    margin: float, sqrt_ref: F64) -> F64:
+    """Bhattacharyya coefficient of the ring around each particle's main box with the target.
+
+    The ring is the box grown by ``margin`` times its width and height on every side, minus
+    the box (clipped to the image). A box smaller than the target has target colours in its
+    ring (coefficient near 1); a box that encloses the target has background there. 0 where
+    the ring lies mostly outside the image (no evidence either way).
+    """
     ox, oy, rw, rh = roi_xywh
-    return _colour_residuals(integral, float(cell), float(ox), float(oy), float(rw), float(rh),
-                             int(image_wh[0]), int(image_wh[1]),
-                             np.ascontiguousarray(particles_xyh, dtype=np.float64),
-                             np.ascontiguousarray(rel_boxes, dtype=np.float64), float(aspect),
-                             np.ascontiguousarray(sqrt_ref, dtype=np.float64))
+    parts = np.ascontiguousarray(particles_xyh, dtype=np.float64)
+    out = np.empty(parts.shape[0])
+    _ring_similarity(integral, float(cell), float(ox), float(oy), float(rw), float(rh),
+                     int(image_wh[0]), int(image_wh[1]), parts, float(aspect), float(margin),
+                     np.ascontiguousarray(sqrt_ref, dtype=np.float64), out)
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -339,11 +420,12 @@ def _motion_residuals(S: NDArray[np.int32], particles: F64, rel: F64, aspect: fl
             y1 = round(top + rel[p, 3] * hh)
             if x1 <= x0 or y1 <= y0:
                 continue
-            area += (x1 - x0) * (y1 - y0)
             cx0 = min(max(x0, 0), img_w)
             cy0 = min(max(y0, 0), img_h)
             cx1 = min(max(x1, 0), img_w)
             cy1 = min(max(y1, 0), img_h)
+            # "the covered area" of eq. (4) is the part inside the image
+            area += (cx1 - cx0) * (cy1 - cy0)
             moving += S[cy1, cx1] - S[cy0, cx1] - S[cy1, cx0] + S[cy0, cx0]
         out[i] = 1.0 if area <= 0 else 1.0 - moving / area
     return out

@@ -2,9 +2,26 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import ClassVar
 
-from engine.params import Params, param
+from engine.params import Params, Preset, param
+
+LOSS_TESTS = ("contrast", "likelihood")
+
+#: the VR-TV paper's filter as published (Sec. III-C): a pure random walk in (x, y, h) (eq. 1;
+#: the paper gives no covariances: the default x/y ones and a scale std of 1.5 % of h per
+#: frame), the fixed reference model, eq. (3)-(5) without the ring term, the weighted mean
+#: (eq. 6) as the output box, and the likelihood loss test: Pmin = 10 % of Pref, Pref the first
+#: frame's maximum likelihood, adapted while P >= 60 % of it. (The histograms keep the N
+#: brightness bins of the paper's ref. [6] for grey pixels.)
+PAPER_PRESET = Preset(
+    "the VR-TV paper's filter as published: random walk in x, y, h, fixed model, "
+    "Pmin = 10 % of Pref",
+    velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, model_update_rate=0.0,
+    bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood",
+    loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100)
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,6 +57,15 @@ class PresenterParams(Params):
                                 "h (eq. 1); 0 keeps the size fixed (a presenter walking parallel "
                                 "to the set; HS histograms barely constrain scale, so a free h "
                                 "drifts and drags y with it)")
+    ring_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
+                               help="scale term beyond eq. (3): the colour likelihood is also "
+                               "multiplied by exp(-this x BC_ring / lambda_col), BC_ring = the "
+                               "Bhattacharyya coefficient of a ring around the box with the "
+                               "target's colours (a box smaller than the person has the "
+                               "person's colours around it); 0 = eq. (3) alone")
+    ring_margin_frac: float = param(0.25, lo=0.05, hi=1.0, step=0.05,
+                                    help="width of that ring on each side, fraction of the "
+                                    "box's width and height")
     lambda_col: float = param(0.15, lo=0.001, hi=10.0, step=0.01,
                               help="colour likelihood covariance lambda_col (eq. 3)")
     lambda_mot: float = param(2.0, lo=0.01, hi=100.0, step=0.1,
@@ -50,6 +76,16 @@ class PresenterParams(Params):
     mhi_duration_frames: int = param(8, lo=1, hi=255, step=1,
                                      help="frames a motion pixel stays in the motion history "
                                      "image")
+    loss_test: str = param("contrast", choices=LOSS_TESTS,
+                           help="loss test: 'contrast' = the patches' colour distance from the "
+                           "anchored model, placed between the target's own level (first "
+                           "tracked frames, then slowly adapted) and the level of the most "
+                           "target-like tenth of this frame's background (z = 0 target, 1 "
+                           "background); LOST while z > loss_contrast. 'likelihood' = the "
+                           "paper's test, P(z_col|s) < loss_percent % of Pref")
+    loss_contrast: float = param(0.5, lo=0.05, hi=2.0, step=0.05,
+                                 help="contrast loss test: LOST while z > this (0.5 = half-way "
+                                 "from the target's colour match to the background's)")
     loss_percent: float = param(0.1, lo=0.0, hi=100.0, step=0.01,
                                 help="loss when P(z_col|s) < Pmin = this % of Pref (with "
                                 "lambda_col 0.15: sum B^2 worse than the reference by 1.04)")
@@ -68,8 +104,10 @@ class PresenterParams(Params):
                                      "histograms move this fraction towards the ones at the "
                                      "estimate (0 = the paper's fixed model)")
     model_update_ratio: float = param(0.3, lo=0.0, hi=1.0, step=0.05,
-                                      help="update the model only while P(z_col|s) >= this "
-                                      "fraction of Pref (guard against drift)")
+                                      help="update the model only while confidently on "
+                                      "the target (guard against drift): contrast test z < "
+                                      "this x loss_contrast; likelihood test P(z_col|s) >= "
+                                      "this x Pref")
     model_anchor: float = param(0.2, lo=0.0, hi=1.0, step=0.05,
                                 help="weight of the first frame's histograms in the reference "
                                 "(the rest is the adapted model): the anchor limits drift")
@@ -119,6 +157,8 @@ class PresenterParams(Params):
     control_port: int = param(9870, lo=1, hi=65535, step=1,
                               help="control message destination UDP port")
     seed: int = param(0, lo=0, hi=2**31 - 1, step=1, help="random seed of the particle filter")
+
+    PRESETS: ClassVar[Mapping[str, Preset]] = {"paper": PAPER_PRESET}
 
     def validate(self) -> None:
         if not self.control_host.strip():

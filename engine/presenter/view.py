@@ -7,14 +7,20 @@ Per frame (VR-TV paper, Fig. 5):
    constant-velocity drift (``velocity_gain``; 0 = the paper's pure random walk);
 3. colour likelihood eq. (2)-(3), motion likelihood eq. (4), fusion eq. (5);
 4. weighted mean eq. (6), then the jitter low-pass;
-5. loss test (Sec. III-C.7): LOST when P(z_col | s_t) < Pmin = p % of Pref for
-   ``loss_frames`` frames. Pref is the median P of the first ``pref_init_frames`` tracked
-   frames (the first frame matches its own model exactly, so its P is an optimistic
-   reference that every later frame falls far short of) and then follows P slowly while
-   P >= 60 % of it. While LOST the output holds the last good position and the filter searches
-   with a diffuse prior of ``reinit_particles`` particles (half fresh every frame, half
-   resampled from the last search) until P at the estimate is back above Pmin for
-   ``reacquire_frames`` frames.
+5. loss test. The paper's (Sec. III-C.7, ``loss_test='likelihood'``): LOST when
+   P(z_col | s_t) < Pmin = p % of Pref for ``loss_frames`` frames, Pref the median P of the
+   first ``pref_init_frames`` tracked frames (the first frame matches its own model exactly)
+   that then follows P slowly while P >= 60 % of it. The default (``'contrast'``) asks
+   whether the estimate still looks like the *first frame's* patches rather than like the
+   background: z = (sum_p B_p^2(s_t) - mu) / (beta - mu), with B_p^2 against the fixed first
+   model (an adapted model follows a tracker that slid onto the desk), mu the target's own
+   level (median over the first tracked frames, then slowly adapted while z is small) and
+   beta the level of the most target-like tenth of boxes sampled over the first frame's
+   background (the desk, a similar wall). z = 0 is the target, 1 the best background; LOST
+   while z > ``loss_contrast``. While LOST the output holds the last good position and the
+   filter searches with a diffuse prior of ``reinit_particles`` particles (half fresh every
+   frame, half resampled from the last search) until the test passes again at the search's
+   best hypothesis for ``reacquire_frames`` frames.
 
 Beyond the paper (each switchable, measured in ``studiotrack bench presenter``):
 - slow model update: while P >= ``model_update_ratio`` x Pref the adapted patch histograms
@@ -22,6 +28,9 @@ Beyond the paper (each switchable, measured in ``studiotrack bench presenter``):
   first frame's + the rest adapted, so it can never drift wholly away (cf. the paper's [5]);
 - background-weighted reference (corrected BWH): reference bins are scaled down by how
   common their colour is in a ring around the first box (``bg_weighting``);
+- scale: the state's h follows a random walk (eq. 1, ``sigma_h_frac``); histograms alone
+  barely constrain it (a smaller box inside the person matches as well), so the colour
+  likelihood also penalises target colours in a ring around the box (``ring_weight``);
 - output width: for a full-body model (first box >= 2x as tall as wide) the output box's width
   and centre come from ``engine.presenter.extent`` (stride / arm swing); the state stays
   (x, y, h) with the first frame's aspect ratio.
@@ -53,7 +62,9 @@ from engine.presenter.likelihood import (
     grey_world_gains,
     motion_likelihood,
     motion_residuals,
+    patch_residuals,
     rect_histogram,
+    ring_similarity,
 )
 from engine.presenter.model import PatchModel
 from engine.presenter.params import PresenterParams
@@ -67,6 +78,11 @@ LOST = "LOST"
 #: (``PresenterParams.fit_width``): a standing presenter is ~3-4x as tall as wide, a head or
 #: face box ~1-1.5x; the rule looks at the first frame's box only
 FULL_BODY_ASPECT = 0.5
+#: background boxes sampled on the first frame for the contrast loss test, and the quantile of
+#: their colour distance taken as "the most target-like background"
+BG_SAMPLES = 96
+BG_QUANTILE = 0.1
+BG_EVERY = 3  # frames between two background samplings (it changes slowly)
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +102,8 @@ class ViewOutput:
     timings_ms: dict[str, float] = field(default_factory=dict)
     #: output box (centre x, width) when ``fit_width`` measured one; None = fixed aspect
     box_cx_w: tuple[float, float] | None = None
+    #: the contrast loss statistic z at the tested state (0 = target, 1 = background)
+    loss_z: float = float("nan")
 
     def __post_init__(self) -> None:
         self.particles_xyh.flags.writeable = False
@@ -126,6 +144,17 @@ class ViewTracker:
         self._bin_w: F64 | None = None  # background weights of the reference bins (BWH)
         self._rel = np.ascontiguousarray(model.rel_boxes)
         self._gains: F64 | None = None
+        self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(self._hist0))  # fixed: loss test
+        rel = self._rel
+        area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
+        pooled = (area / max(float(area.sum()), 1e-12)) @ self._hist0
+        self._sqrt_pooled = np.ascontiguousarray(np.sqrt(pooled))  # target colours: ring
+        self._mu: float | None = None  # target level of sum B^2 (contrast loss test)
+        self._beta: float | None = None  # most target-like background level
+        self._mu_boot: list[float] = []
+        self._bg_rng = np.random.default_rng([params.seed, 17])
+        self._last_fixed = float("nan")
+        self.loss_z = float("nan")
 
     # ------------------------------------------------------------------ configuration
 
@@ -156,19 +185,22 @@ class ViewTracker:
 
     def _evaluate(self, bgr: NDArray[np.uint8], states: F64,
                   motion: bool = True) -> tuple[F64, F64 | None, Any]:
-        """sum B^2 and E for each state row, and the integral context for re-use."""
+        """Colour residual (sum_p B_p^2 plus the ring term) and E for each state row, and
+        the integral context for re-use."""
         H, W = bgr.shape[:2]
+        p = self.params
         hs = states[:, 2]
         ws = hs * self.model.aspect
-        x0 = int(max(math.floor(np.min(states[:, 0] - ws / 2)) - 1, 0))
-        y0 = int(max(math.floor(np.min(states[:, 1] - hs / 2)) - 1, 0))
-        x1 = int(min(math.ceil(np.max(states[:, 0] + ws / 2)) + 1, W))
-        y1 = int(min(math.ceil(np.max(states[:, 1] + hs / 2)) + 1, H))
+        grow = 1.0 + (2.0 * p.ring_margin_frac if p.ring_weight > 0 else 0.0)
+        x0 = int(max(math.floor(np.min(states[:, 0] - grow * ws / 2)) - 1, 0))
+        y0 = int(max(math.floor(np.min(states[:, 1] - grow * hs / 2)) - 1, 0))
+        x1 = int(min(math.ceil(np.max(states[:, 0] + grow * ws / 2)) + 1, W))
+        y1 = int(min(math.ceil(np.max(states[:, 1] + grow * hs / 2)) + 1, H))
         ctx = None
         if x1 - x0 < 1 or y1 - y0 < 1:
             b2 = np.full(len(states), float(len(self._rel)))
         else:
-            cell = max(1, math.ceil(max(x1 - x0, y1 - y0) / self.params.max_cells))
+            cell = max(1, math.ceil(max(x1 - x0, y1 - y0) / p.max_cells))
             # with cells of 4+ px, histogram every other pixel each way (a half-resolution
             # integral histogram): a quarter of the colour conversion and counting
             step = 2 if cell >= 4 else 1
@@ -179,8 +211,12 @@ class ViewTracker:
                                        pixel_weight=float(step * step))
             ctx = (integral, cell, (x0, y0, x1 - x0, y1 - y0), (W, H))
             b2 = self._colour(ctx, states)
+            if p.ring_weight > 0:
+                b2 = b2 + p.ring_weight * ring_similarity(
+                    integral, cell, ctx[2], (W, H), states, self.model.aspect,
+                    p.ring_margin_frac, self._sqrt_pooled)
         e = None
-        if motion and self.params.use_motion and self.motion.mhi is not None:
+        if motion and p.use_motion and self.motion.mhi is not None:
             e = motion_residuals(self.motion.motion_integral(), states, self._rel,
                                  self.model.aspect, MOTION_STEP)
         return b2, e, ctx
@@ -189,6 +225,58 @@ class ViewTracker:
         integral, cell, roi, wh = ctx
         return colour_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
                                 self._sqrt_ref)
+
+    def _fixed_residual(self, ctx: Any, states: F64) -> F64:
+        """sum_p B_p^2 against the anchored model without background weighting (loss test)."""
+        integral, cell, roi, wh = ctx
+        return patch_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
+                               self._sqrt_ref0).sum(axis=1)
+
+    def _background_levels(self, bgr: NDArray[np.uint8], xyh: F64) -> None:
+        """beta: the BG_QUANTILE of sum_p B_p^2 over boxes of the target's size sampled over
+        this frame away from ``xyh`` (IoU < 0.1), on a coarse whole-frame integral histogram;
+        smoothed over frames. It follows global light changes of the background."""
+        H, W = bgr.shape[:2]
+        x, y, h = (float(v) for v in xyh)
+        w = h * self.model.aspect
+        step = max(1, math.ceil(max(W, H) / 160))  # coarse: at most 160 px a side
+        small = np.ascontiguousarray(bgr[::step, ::step])
+        hsv = cv2.cvtColor(apply_gains(small, self._gains), cv2.COLOR_BGR2HSV)
+        cell = 2
+        ctx = (binned_integral(hsv, self.model.n_bins, cell, pixel_weight=float(step * step)),
+               cell, (0, 0, hsv.shape[1], hsv.shape[0]), (hsv.shape[1], hsv.shape[0]))
+        rng = self._bg_rng
+        n = 4 * BG_SAMPLES
+        k = rng.uniform(0.8, 1.25, n)
+        hs, ws = h * k, w * k
+        cx = rng.uniform(ws / 2, np.maximum(W - ws / 2, ws / 2 + 1e-6))
+        cy = rng.uniform(hs / 2, np.maximum(H - hs / 2, hs / 2 + 1e-6))
+        ix = np.clip(np.minimum(cx + ws / 2, x + w / 2) - np.maximum(cx - ws / 2, x - w / 2),
+                     0, None)
+        iy = np.clip(np.minimum(cy + hs / 2, y + h / 2) - np.maximum(cy - hs / 2, y - h / 2),
+                     0, None)
+        inter = ix * iy
+        iou = inter / (ws * hs + w * h - inter)
+        keep = np.flatnonzero((iou < 0.1) & (ws <= W) & (hs <= H))[:BG_SAMPLES]
+        if len(keep) < 8:
+            return  # no room for background beside the target: beta stays as it was
+        states = np.stack([cx[keep], cy[keep], hs[keep]], axis=1) / step
+        integral, c, roi, wh = ctx
+        r = patch_residuals(integral, c, roi, wh, states, self._rel, self.model.aspect,
+                            self._sqrt_ref0).sum(axis=1)
+        beta = float(np.quantile(r, BG_QUANTILE))
+        self._beta = beta if self._beta is None else self._beta + 0.2 * (beta - self._beta)
+
+    def _loss_z(self, ctx: Any, xyh: F64) -> float:
+        """z = (sum_p B_p^2 - mu) / (beta - mu) at ``xyh`` (NaN before mu is known)."""
+        if ctx is None:
+            return float("nan")
+        r = float(self._fixed_residual(ctx, xyh[None, :])[0])
+        self._last_fixed = r
+        if self._mu is None or self._beta is None:
+            return float("nan")
+        n = len(self._rel)
+        return (r - self._mu) / max(self._beta - self._mu, 0.05 * n)
 
     def _patch_hists(self, ctx: Any, xyh: F64) -> F64 | None:
         """Normalised patch histograms at one state from the frame's integral (None if a
@@ -222,6 +310,8 @@ class ViewTracker:
         """sqrt of the reference histograms: anchored blend, then background weights."""
         p = self.params
         ref = p.model_anchor * self._hist0 + (1.0 - p.model_anchor) * self._hist_adapt
+        # the loss test's reference: the anchored model without background weighting
+        self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(ref))
         if self._bin_w is not None and p.bg_weighting > 0:
             ref = ref * self._bin_w ** p.bg_weighting
             ref /= np.maximum(ref.sum(axis=1, keepdims=True), 1e-12)
@@ -279,8 +369,8 @@ class ViewTracker:
             idx = systematic_resample(self.weights, n_keep, self.rng)
             kept = pf.predict(self.particles[idx], self.sigma_xyh(h_ref), self.rng,
                               self.h_limits)
-            # scale of the diffuse prior: the last size, spread only if the scale is free
-            k = min(0.25, 10.0 * p.sigma_h_frac)
+            # scale of the diffuse prior: around the last size, wider if the scale is free
+            k = min(0.35, 10.0 * p.sigma_h_frac)
             fresh = pf.diffuse_cloud((W, H), ((1.0 - k) * h_ref, (1.0 + k) * h_ref),
                                      n - n_keep, self.rng)
             self.particles = np.vstack([kept, fresh])
@@ -289,15 +379,22 @@ class ViewTracker:
         t0 = time.perf_counter()
         b2, e, ctx = self._evaluate(bgr, self.particles)
         timings["likelihood_ms"] = (time.perf_counter() - t0) * 1000.0
-        w = colour_likelihood(b2, p.lambda_col)  # eq. (3)
+        w = colour_likelihood(b2, p.lambda_col)  # eq. (3) (times the ring term)
         if e is not None:
             w = w * motion_likelihood(e, p.lambda_mot)  # eq. (4)-(5)
         self.weights = pf.normalise(w)  # eq. (5)
         mean = pf.weighted_mean(self.particles, self.weights)  # eq. (6)
+        # while searching the weights are many-peaked: test (and re-acquire at) the best one
+        probe = mean if self.state == TRACKING else self.particles[int(np.argmax(w))]
         # P(z_col | s_t) at the estimate (inside the particles' region: same integral)
-        b2_mean = (self._colour(ctx, mean[None, :]) if ctx is not None
-                   else self._evaluate(bgr, mean[None, :], motion=False)[0])
+        b2_mean = (self._colour(ctx, probe[None, :]) if ctx is not None
+                   else self._evaluate(bgr, probe[None, :], motion=False)[0])
         p_col = float(colour_likelihood(b2_mean[0], p.lambda_col))
+        if first or self._n_frames % BG_EVERY == 0:
+            # the background's level around the tested state, then z there
+            self._background_levels(bgr, self.last_good_xyh if self.state != TRACKING
+                                    else probe)
+        z = self._loss_z(ctx, probe)
         self._n_frames += 1
         if first:
             self.p_ref = max(float(np.max(colour_likelihood(b2, p.lambda_col))), p_col)
@@ -306,11 +403,20 @@ class ViewTracker:
             # Pref from the first tracked frames, not the self-match of the first one
             self._p_boot.append(p_col)
             self.p_ref = float(np.median(self._p_boot))
+            if ctx is not None:
+                self._mu_boot.append(self._last_fixed)
+                self._mu = float(np.median(self._mu_boot))
         assert self.p_ref is not None
         p_min = p.loss_percent / 100.0 * self.p_ref
+        if p.loss_test == "contrast" and math.isfinite(z):
+            bad = z > p.loss_contrast
+        elif p.loss_test == "contrast":
+            bad = False  # no background beside the target to compare with: never LOST
+        else:
+            bad = p_col < p_min
 
         if self.state == TRACKING:
-            self._below = self._below + 1 if (p_col < p_min and not booting) else 0
+            self._below = self._below + 1 if (bad and not booting) else 0
             if self._below >= p.loss_frames:
                 self.state = LOST
                 self.lost_frames = self._below
@@ -319,20 +425,27 @@ class ViewTracker:
                 self.last_good_xyh = mean.copy()
                 if not booting and p_col >= p.pref_adapt_ratio * self.p_ref:  # slow Pref adapt
                     self.p_ref += p.pref_adapt_rate * (p_col - self.p_ref)
-                if p_col >= p.model_update_ratio * self.p_ref:
+                if not booting and self._mu is not None and math.isfinite(z) \
+                        and z < 0.5 * p.loss_contrast:
+                    # the target's own level follows slow changes of pose and light
+                    self._mu += p.pref_adapt_rate * (self._last_fixed - self._mu)
+                confident = (z < p.model_update_ratio * p.loss_contrast if p.loss_test == "contrast"
+                             and math.isfinite(z) else p_col >= p.model_update_ratio * self.p_ref)
+                if confident:
                     self._update_model(ctx, mean)
         else:
             self.lost_frames += 1
-            self._above = self._above + 1 if p_col >= p_min else 0
+            self._above = self._above + 1 if not bad else 0
             if self._above >= p.reacquire_frames:
                 self.state = TRACKING
                 self.lost_frames = 0
                 self._below = 0
+                mean = probe.copy()
                 self.last_good_xyh = mean.copy()
                 self.jitter.reset(mean)
                 # back to the normal particle count around the re-acquired state
-                idx = systematic_resample(self.weights, p.n_particles, self.rng)
-                self.particles = self.particles[idx]
+                self.particles = pf.gaussian_cloud(mean, self.sigma_xyh(float(mean[2])),
+                                                   p.n_particles, self.rng)
                 self.weights = np.full(p.n_particles, 1.0 / p.n_particles)
 
         if self.state == TRACKING and self._below == 0:
@@ -356,6 +469,7 @@ class ViewTracker:
                 self._fit_width(bgr, mean)
             if self._box_dx_w is not None:
                 box_cx_w = (float(raw[0]) + self._box_dx_w[0], self._box_dx_w[1])
+        self.loss_z = z
         timings["total_ms"] = (time.perf_counter() - t_start) * 1000.0
         return ViewOutput(
             state=self.state,
@@ -370,6 +484,7 @@ class ViewTracker:
             lost_frames=self.lost_frames,
             timings_ms=timings,
             box_cx_w=box_cx_w,
+            loss_z=z,
         )
 
     def _fit_width(self, bgr: NDArray[np.uint8], mean: F64) -> None:

@@ -20,7 +20,17 @@ presenter_return       leave mode: frame the presenter starts walking back (2 fr
 presenter_speed (0.9)  walking speed, m/s
 presenter_xmin/xmax    walk mode range along x, m (-2.6, 2.6; static camera -1.1, 1.1)
 presenter_x (0)        still/leave mode standing position along x, m
+presenter_out          leave mode: where the presenter waits out of view, m (x + 2.6; left
+                       of the standing position = walks out to the left)
 presenter_y (2.4)      distance of the presenter's line from the rail (world y), m
+presenter_look (0)     who presents: 0..6 (engine.studio.presenter.LOOKS: clothes, skin, height)
+person2 (none)         a second person: cross (walks to and fro 0.8 m in front of the
+                       presenter's line), behind (0.5 m behind it), beside (stands 0.7 m to
+                       the presenter's right)
+person2_look (1)       the second person's look (0 = dressed like the presenter)
+person2_speed (0.7)    the second person's walking speed, m/s
+person2_start (0)      first frame with the second person in the studio
+lighting (default)     default | warm | cool | dim | bright | ramp (dark to light) | side
 ball (0)               1: the red target ball on a circle
 ball_period_s (30)     ball circle period, s
 ball_circle_m (1.0)    ball circle radius, m
@@ -52,6 +62,8 @@ from engine.sources.base import Source, SourceSpec, parse_options
 
 PATHS = ("rail", "pan", "handheld", "static")
 PRESENTER_MODES = ("walk", "still", "leave")
+PERSON2_MODES = ("none", "cross", "behind", "beside")
+LIGHTING_NAMES = ("default", "warm", "cool", "dim", "bright", "ramp", "side")
 
 
 #: the largest integer option accepted (frame counts, seeds): beyond it len() overflows
@@ -126,7 +138,14 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "presenter_xmin": _float(-4.5, 4.5),
     "presenter_xmax": _float(-4.5, 4.5),
     "presenter_x": _float(-4.5, 4.5),
+    "presenter_out": _float(-4.6, 4.6),
     "presenter_y": _float(0.5, 4.2),
+    "presenter_look": _int(0, 6),
+    "person2": _choice(*PERSON2_MODES),
+    "person2_look": _int(0, 6),
+    "person2_speed": _float(0.0, 10.0, open_lo=True),
+    "person2_start": _int(0),
+    "lighting": _choice(*LIGHTING_NAMES),
     "ball": _bool,
     "ball_period_s": _float(0.0, open_lo=True),
     "ball_circle_m": _float(0.0, 3.0),
@@ -206,16 +225,19 @@ def config_from_options(opts: dict[str, str]) -> Any:
                 leave_frame=o.get("presenter_leave", frames // 3),
                 return_frame=o.get("presenter_return", (2 * frames) // 3),
                 # the static camera sees x within +-1.5 m at y = 2.4: 2.6 m is well outside
-                x_out_m=min(4.6, o.get("presenter_x", 0.0) + 2.6) if not wide else 4.6,
+                x_out_m=o["presenter_out"] if "presenter_out" in o else
+                (min(4.6, o.get("presenter_x", 0.0) + 2.6) if not wide else 4.6),
                 # appearing mid-sequence: walk in from the left wall rather than pop up
                 enter_from_m=-4.6 if start > 0 else None,
+                look=o.get("presenter_look", 0),
             )
         except ValueError as exc:
             raise SourceError(f"synthetic: presenter options: {exc}") from None
     else:
-        stray = [k for k in o if k.startswith("presenter_")]
+        stray = [k for k in o if k.startswith(("presenter_", "person2"))]
         if stray:
             raise SourceError(f"synthetic: option {stray[0]} needs presenter=1")
+    person2 = _person2(o, presenter, fps, path_kind != "static")
     ball = None
     stray = [k for k in o if k.startswith("ball_")]
     if stray and not o.get("ball", False):
@@ -246,7 +268,35 @@ def config_from_options(opts: dict[str, str]) -> Any:
         cover_start=o.get("cover_start", -1),
         cover_frames=o.get("cover_frames", 20 if "cover_start" in o else 0),
         threads=o.get("threads", 1),
+        person2=person2,
+        lighting=o.get("lighting", "default"),
     )
+
+
+def _person2(o: dict[str, Any], presenter: Any, fps: float, wide: bool) -> Any:
+    """The second person's script: walking to and fro in front of or behind the presenter's
+    line, or standing beside the presenter's (standing) position."""
+    from engine.studio.presenter import PresenterScript
+
+    mode = o.get("person2", "none")
+    stray = [k for k in o if k.startswith("person2_")]
+    if mode == "none":
+        if stray:
+            raise SourceError(f"synthetic: option {stray[0]} needs person2=cross|behind|beside")
+        return None
+    assert presenter is not None
+    look = o.get("person2_look", 1)
+    start = o.get("person2_start", 0)
+    speed = o.get("person2_speed", 0.7)
+    if mode == "beside":
+        return PresenterScript(mode="still", fps=fps, start_frame=start,
+                               x_still_m=min(presenter.x_still_m + 0.7, 4.4),
+                               y_m=presenter.y_m, look=look)
+    dy = -0.8 if mode == "cross" else 0.5
+    span = 2.6 if wide else 1.6
+    return PresenterScript(mode="walk", fps=fps, start_frame=start, speed_mps=speed,
+                           x_min_m=-span, x_max_m=span, y_m=min(max(presenter.y_m + dy, 0.6), 4.2),
+                           look=look, enter_from_m=4.6 - 9.2 if start > 0 else None)
 
 
 class SyntheticSource(Source):

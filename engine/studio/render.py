@@ -488,7 +488,8 @@ class Renderer:
     numba's default, all cores). The kernel releases the GIL while it runs.
     """
 
-    def __init__(self, scene: StudioScene, intrinsics: Intrinsics, threads: int = 1) -> None:
+    def __init__(self, scene: StudioScene, intrinsics: Intrinsics, threads: int = 1,
+                 dynamic_light: F64 | None = None) -> None:
         self.scene = scene
         self.intrinsics = intrinsics
         self.threads = int(threads)
@@ -500,7 +501,9 @@ class Renderer:
         self.inv_norm = 1.0 / np.sqrt(self.xn**2 + self.yn**2 + 1.0)
         self.row_ymin = self.yn.min(axis=1)
         self.row_ymax = self.yn.max(axis=1)
-        self._dyn = np.array([*_DYN_LIGHT, _DYN_AMBIENT, _DYN_DIFFUSE])
+        # (direction, ambient, diffuse) of the flat materials' light (engine.studio.lighting)
+        self._dyn = (np.array([*_DYN_LIGHT, _DYN_AMBIENT, _DYN_DIFFUSE]) if dynamic_light is None
+                     else np.ascontiguousarray(dynamic_light, dtype=np.float64))
         self._mat_i, self._mat_f, self._atlas = _pack_materials(scene)
 
     def render(

@@ -50,6 +50,8 @@ BOX, CYL, SPH, CAP = 0, 1, 2, 3
 
 #: label map codes (``StudioLabels.labels`` of :mod:`engine.studio.sim`)
 LABEL_SET, LABEL_HEAD, LABEL_TORSO, LABEL_LEGS, LABEL_BALL, LABEL_OCCLUDER = 0, 1, 2, 3, 4, 5
+#: a second person in the studio (all body parts)
+LABEL_PERSON2 = 6
 LABEL_NAMES = {
     LABEL_SET: "set",
     LABEL_HEAD: "head",
@@ -57,6 +59,7 @@ LABEL_NAMES = {
     LABEL_LEGS: "legs",
     LABEL_BALL: "ball",
     LABEL_OCCLUDER: "occluder",
+    LABEL_PERSON2: "person2",
 }
 
 ROOM_MIN = (-5.0, -3.0, 0.0)
@@ -73,6 +76,22 @@ FLAT_COLOURS: dict[str, tuple[float, float, float]] = {
     "shoes": (0.05, 0.05, 0.05),
     "ball": (0.88, 0.06, 0.05),
     "occluder": (0.55, 0.56, 0.6),
+    # further looks of the presenter and of a second person (``engine.studio.presenter.LOOKS``)
+    "skin_dark": (0.45, 0.3, 0.22),
+    "skin_olive": (0.72, 0.52, 0.38),
+    "hair_black": (0.05, 0.04, 0.04),
+    "hair_blond": (0.78, 0.62, 0.35),
+    "hair_grey": (0.55, 0.54, 0.52),
+    "shirt_red": (0.72, 0.1, 0.12),
+    "shirt_green": (0.15, 0.5, 0.25),
+    "shirt_yellow": (0.85, 0.7, 0.15),
+    "shirt_white": (0.86, 0.86, 0.84),
+    "shirt_purple": (0.42, 0.16, 0.5),
+    "jacket_grey": (0.35, 0.36, 0.38),
+    "trousers_beige": (0.66, 0.56, 0.4),
+    "trousers_jeans": (0.16, 0.24, 0.45),
+    "trousers_black": (0.05, 0.05, 0.06),
+    "shoes_brown": (0.25, 0.14, 0.07),
 }
 
 

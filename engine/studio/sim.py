@@ -13,9 +13,12 @@ deterministic by seed. Each frame carries the truth as two payloads:
   ``ball_acc_world``, ``ball_radius_m``, ``ball_omega_rad_s``, ``ball_center_px``
   (projection of the centre, may be outside), ``ball_box_xywh`` (visible pixels) and
   ``ball_pixels``; with the occluder on, ``occluder_pos_world``, ``occluder_box_xywh``,
-  ``occluder_pixels``, ``occluder_fraction``. Fields of parts that are off are None.
+  ``occluder_pixels``, ``occluder_fraction``; with a second person, ``person2_box_xywh``,
+  ``person2_pixels``, ``person2_pos_world`` (label 6, never part of the presenter's box).
+  Fields of parts that are off are None.
 - :class:`StudioLabels` (images, not kept in the run history): ``labels``, a uint8 (H, W)
-  map (0 set, 1 head, 2 torso (+arms), 3 legs (+shoes), 4 ball, 5 occluder) and
+  map (0 set, 1 head, 2 torso (+arms), 3 legs (+shoes), 4 ball, 5 occluder, 6 second
+  person) and
   ``depth_exact_m``, the noise-free depth (only when noise or dropouts are on, else None).
 """
 
@@ -35,6 +38,7 @@ from engine.frames import Frame, FramePayload, readonly
 from engine.geometry import invert
 from engine.studio import sensor
 from engine.studio.ball import BallPath
+from engine.studio.lighting import LIGHTINGS, apply_gain
 from engine.studio.paths import CameraPath
 from engine.studio.presenter import PresenterScript, body_prims, concat_prims
 from engine.studio.render import Prims, Renderer, label_boxes
@@ -44,6 +48,7 @@ from engine.studio.scene import (
     LABEL_HEAD,
     LABEL_LEGS,
     LABEL_OCCLUDER,
+    LABEL_PERSON2,
     LABEL_TORSO,
     StudioScene,
     build_scene,
@@ -79,6 +84,9 @@ class StudioTruth(FramePayload):
     occluder_pixels: int | None = None
     occluder_fraction: float | None = None
     occluder_box_xywh: Box | None = None
+    person2_pixels: int | None = None
+    person2_box_xywh: Box | None = None
+    person2_pos_world: Vec3 | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,6 +141,12 @@ class StudioConfig:
     cover_start: int = -1  # lens covered from this frame (dark image, no depth) ...
     cover_frames: int = 0  # ... for this many frames
     threads: int = 1  # renderer threads (0: all cores)
+    person2: PresenterScript | None = None  # a second person (another look, label 6)
+    lighting: str = "default"  # a variant of ``engine.studio.lighting.LIGHTINGS``
+
+    def __post_init__(self) -> None:
+        if self.lighting not in LIGHTINGS:
+            raise ValueError(f"lighting {self.lighting!r} is not one of {', '.join(LIGHTINGS)}")
 
 
 class Studio:
@@ -145,7 +159,9 @@ class Studio:
 
     @cached_property
     def renderer(self) -> Renderer:
-        return Renderer(self.scene, self.intrinsics, self.config.threads)
+        light = LIGHTINGS[self.config.lighting]
+        return Renderer(self.scene, self.intrinsics, self.config.threads,
+                        None if light.name == "default" else light.dynamic_light())
 
     @cached_property
     def _vignette(self) -> NDArray[np.float32] | None:
@@ -174,8 +190,13 @@ class Studio:
         keypoints: dict[str, F64] | None = None
         state = cfg.presenter.state(index) if cfg.presenter is not None else None
         if state is not None:
-            body, keypoints = body_prims(state, self.scene)
+            body, keypoints = body_prims(state, self.scene, cfg.presenter.look)
             parts.append(body)
+        state2 = cfg.person2.state(index) if cfg.person2 is not None else None
+        keypoints2: dict[str, F64] | None = None
+        if state2 is not None and cfg.person2 is not None:
+            body2, keypoints2 = body_prims(state2, self.scene, cfg.person2.look, LABEL_PERSON2)
+            parts.append(body2)
         ball_truth = None
         if cfg.ball is not None:
             ball_truth = cfg.ball.state(t_s)
@@ -186,8 +207,17 @@ class Studio:
             truth["occluder_pos_world"] = _tup(occ_centre)
         out = self.renderer.render(T_world_cam, concat_prims(*parts) if parts else None)
         color, depth, labels = out.color_bgr, out.depth_m, out.labels
+        # exposure and white balance of the lighting variant (before the sensor noise)
+        light = LIGHTINGS[cfg.lighting]
+        if not light.is_identity:
+            color = apply_gain(color, light.gain_bgr(index / max(cfg.frames - 1, 1)))
 
-        boxes = label_boxes(labels, 6)
+        boxes = label_boxes(labels, 7)
+        if cfg.person2 is not None:
+            n_p2 = int(boxes[LABEL_PERSON2, 4])
+            truth["person2_pixels"] = n_p2
+            truth["person2_box_xywh"] = _xywh(*boxes[LABEL_PERSON2, :4]) if n_p2 else None
+            truth["person2_pos_world"] = None if keypoints2 is None else _tup(keypoints2["feet"])
         if cfg.occluder:
             n_occ = int(boxes[LABEL_OCCLUDER, 4])
             truth["occluder_pixels"] = n_occ

@@ -55,6 +55,9 @@ class PresenterDetails(TrackDetails):
     control: ControlCommand
     model_warnings: tuple[str, ...] = ()
     overhead_xyh: XYH | None = None
+    #: contrast loss statistic at the tested state: 0 = the target's own colour match,
+    #: 1 = the most target-like background's (NaN until known)
+    loss_z: float = float("nan")
 
 
 def _as_bgr(frame: Frame) -> np.ndarray:
@@ -209,7 +212,7 @@ class PresenterTracker:
             raw_xyh=_xyh(out.raw_xyh), filtered_xyh=_xyh(out.filtered_xyh),
             p_col=float(out.p_col), p_ref=float(out.p_ref), p_min=float(out.p_min),
             n_particles=int(out.n_particles), lost_frames=int(out.lost_frames),
-            lag_frames=float(self._view.lag_frames), lag_s=float(self._view.jitter.lag_s),
+            loss_z=float(out.loss_z), lag_frames=float(self._view.lag_frames), lag_s=float(self._view.jitter.lag_s),
             d_m=d_m, control=cmd, model_warnings=tuple(self._view.model.warnings),
             overhead_xyh=None if over_out is None else _xyh(over_out.filtered_xyh),
         )

@@ -1,0 +1,128 @@
+"""Leave-one-sequence-out choice of the presenter tracker's defaults.
+
+The protocol (run by ``studiotrack bench presenter``; nothing here is fixed by hand):
+
+1. a small set of knobs that matter (``COARSE`` grid, then ``FINE`` one-knob-at-a-time moves
+   from the coarse winner), every other parameter at its default;
+2. a candidate is scored on the first ``search_frames`` frames of each labelled sequence
+   (success AUC) and must meet the loss goals on the ``check`` loss scenarios (other seeds,
+   looks and image sizes than the reported ones, ``engine.bench.presenter_scenarios``);
+3. the score of a candidate on a set of sequences is the mean AUC of the studio sequences and
+   the mean AUC of the real ones, averaged (so six studio variants do not outvote three real
+   sequences);
+4. fold *k* chooses on every sequence but *k* (coarse grid, then fine moves, feasible
+   candidates only) and runs its choice on the whole of sequence *k*: that sequence's
+   ``success_auc_heldout``;
+5. the global choice is the same procedure on all sequences; it is what ``PresenterParams``
+   ships as defaults, and the bench says whether the shipped defaults equal it.
+
+Every (candidate, sequence) run is done once per process and shared by the folds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from engine.progress import log
+
+Overrides = tuple[tuple[str, Any], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Knob:
+    name: str
+    values: tuple[Any, ...]
+    start: Any = None  # fine knobs: where the moves start (independent of shipped defaults)
+
+
+#: coarse grid: the scale random walk, the ring (scale) term, the model-update gate
+COARSE: tuple[Knob, ...] = (
+    Knob("sigma_h_frac", (0.005, 0.015, 0.03)),
+    Knob("ring_weight", (0.0, 0.5, 1.0)),
+    Knob("model_update_ratio", (0.3, 0.7)),
+)
+#: fine moves from the coarse winner, one knob at a time, in this order
+FINE: tuple[Knob, ...] = (
+    Knob("lambda_col", (0.1, 0.15, 0.22), start=0.15),
+    Knob("loss_contrast", (0.4, 0.5, 0.7), start=0.5),
+    Knob("velocity_gain", (0.25, 0.5, 0.75), start=0.5),
+    Knob("fit_width", (True, False), start=True),
+)
+
+
+def coarse_grid() -> list[Overrides]:
+    grid: list[Overrides] = [()]
+    for k in COARSE:
+        grid = [(*g, (k.name, v)) for g in grid for v in k.values]
+    start = tuple((k.name, k.start) for k in FINE)
+    return [(*g, *start) for g in grid]
+
+
+def _with(c: Overrides, name: str, value: Any) -> Overrides:
+    return tuple((k, value if k == name else v) for k, v in c)
+
+
+AucFn = Callable[[Overrides, str], float]
+FeasibleFn = Callable[[Overrides], bool]
+
+
+@dataclass
+class Selection:
+    """Scores shared by every fold: AUC per (candidate, sequence), feasibility per candidate."""
+
+    auc: AucFn
+    feasible: FeasibleFn
+    studio: frozenset[str]
+    evaluated: int = 0
+
+    def score(self, c: Overrides, train: Sequence[str]) -> float:
+        groups = [[s for s in train if s in self.studio], [s for s in train
+                                                          if s not in self.studio]]
+        means = [float(np.mean([self.auc(c, s) for s in g])) for g in groups if g]
+        return float(np.mean(means))
+
+    def choose(self, train: Sequence[str]) -> tuple[Overrides, float]:
+        """Coarse grid, then fine moves; feasible candidates only (ties: the earlier one)."""
+        best: Overrides | None = None
+        best_score = -np.inf
+        for c in coarse_grid():
+            if not self.feasible(c):
+                continue
+            sc = self.score(c, train)
+            if sc > best_score:
+                best, best_score = c, sc
+        if best is None:
+            raise RuntimeError("no candidate meets the loss goals on the check scenarios")
+        for knob in FINE:
+            for v in knob.values:
+                c = _with(best, knob.name, v)
+                if c == best or not self.feasible(c):
+                    continue
+                sc = self.score(c, train)
+                if sc > best_score + 1e-9:
+                    best, best_score = c, sc
+        return best, best_score
+
+
+def run_loo(sequences: Sequence[str], studio: Sequence[str], auc: AucFn,
+            feasible: FeasibleFn, heldout_auc: AucFn) -> dict[str, Any]:
+    """Every fold's choice and held-out AUC, and the global choice (see the module doc)."""
+    sel = Selection(auc=auc, feasible=feasible, studio=frozenset(studio))
+    folds: dict[str, Any] = {}
+    for held in sequences:
+        train = [s for s in sequences if s != held]
+        choice, train_score = sel.choose(train)
+        folds[held] = {"choice": dict(choice), "train_score": round(train_score, 4),
+                       "success_auc_heldout": round(heldout_auc(choice, held), 4)}
+        log(f"  fold {held}: held-out AUC {folds[held]['success_auc_heldout']:.3f} "
+            f"with {dict(choice)}")
+    choice, score = sel.choose(list(sequences))
+    return {"folds": folds, "global_choice": dict(choice), "global_score": round(score, 4)}
+
+
+def shipped_matches(choice: Mapping[str, Any], defaults: Any) -> bool:
+    return all(getattr(defaults, k) == v for k, v in choice.items())
