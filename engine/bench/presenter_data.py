@@ -41,8 +41,8 @@ STUDIO_SEQUENCES: tuple[Sequence, ...] = (
     Sequence("studio_warm", _S + "seed=5,path=static,presenter_look=1,lighting=warm",
              studio=True, description="static camera, red top, tungsten cast"),
     Sequence("studio_dim", _S + "seed=7,path=handheld,presenter_look=2,lighting=dim,"
-             "width=480,height=360,presenter_y=3.0,presenter_xmin=-1.2,presenter_xmax=1.4", studio=True,
-             description="hand-held 480x360, green jumper, dim light"),
+             "width=480,height=360,presenter_y=3.0,presenter_xmin=-1.2,presenter_xmax=1.4",
+             studio=True, description="hand-held 480x360, green jumper, dim light"),
     Sequence("studio_ramp", _S + "seed=11,path=pan,presenter_look=3,lighting=ramp,"
              "width=320,height=240,presenter_xmin=-1.5,presenter_xmax=1.5", studio=True,
              description="panning 320x240, yellow top, light coming up from dark"),

@@ -429,8 +429,10 @@ class ViewTracker:
                         and z < 0.5 * p.loss_contrast:
                     # the target's own level follows slow changes of pose and light
                     self._mu += p.pref_adapt_rate * (self._last_fixed - self._mu)
-                confident = (z < p.model_update_ratio * p.loss_contrast if p.loss_test == "contrast"
-                             and math.isfinite(z) else p_col >= p.model_update_ratio * self.p_ref)
+                if p.loss_test == "contrast" and math.isfinite(z):
+                    confident = z < p.model_update_ratio * p.loss_contrast
+                else:
+                    confident = p_col >= p.model_update_ratio * self.p_ref
                 if confident:
                     self._update_model(ctx, mean)
         else:

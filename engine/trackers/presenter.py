@@ -212,7 +212,8 @@ class PresenterTracker:
             raw_xyh=_xyh(out.raw_xyh), filtered_xyh=_xyh(out.filtered_xyh),
             p_col=float(out.p_col), p_ref=float(out.p_ref), p_min=float(out.p_min),
             n_particles=int(out.n_particles), lost_frames=int(out.lost_frames),
-            loss_z=float(out.loss_z), lag_frames=float(self._view.lag_frames), lag_s=float(self._view.jitter.lag_s),
+            loss_z=float(out.loss_z), lag_frames=float(self._view.lag_frames),
+            lag_s=float(self._view.jitter.lag_s),
             d_m=d_m, control=cmd, model_warnings=tuple(self._view.model.warnings),
             overhead_xyh=None if over_out is None else _xyh(over_out.filtered_xyh),
         )
