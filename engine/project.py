@@ -9,6 +9,8 @@ annotate, bundle-adjust). Layout::
     project.json.damaged-<time>  a damaged project.json found by a save (kept, never reused)
     rev-0003/           the current revision, written completely before project.json
         camera.json         calibration (engine.camera format), optional
+        floor.json          floor calibration of the presenter's second (overhead) view
+                            (engine.floor format), optional
         keyframes/          keyframe store (engine.keyframes.store format), optional
         annotations.json    annotated points: observations per keyframe, 3D point
         presenter.json      presenter models slot (JSON objects by name)
@@ -94,6 +96,7 @@ class Project:
 
     name: str = "studio"
     intrinsics: Intrinsics | None = None
+    floor_calibration: Any | None = None  # engine.floor.FloorCalibration
     keyframes: Any | None = None  # engine.keyframes.store.KeyframeStore
     annotations: list[AnnotatedPoint] = field(default_factory=list)
     presenter_models: dict[str, Any] = field(default_factory=dict)
@@ -181,6 +184,8 @@ class Project:
         data.mkdir(parents=True)
         if self.intrinsics is not None:
             save_camera_json(self.intrinsics, data / "camera.json")
+        if self.floor_calibration is not None:
+            atomic_write_json(data / "floor.json", self.floor_calibration.to_json())
         if self.keyframes is not None:
             self.keyframes.save(data / "keyframes")
         atomic_write_json(
@@ -221,6 +226,15 @@ def open_project(folder: str | Path) -> Project:
             intr = load_camera_json(data / "camera.json")
         except CalibrationError as exc:
             raise ProjectError(str(exc)) from None
+    floor = None
+    if (data / "floor.json").exists():
+        from engine.floor import floor_calibration_from_json
+
+        try:
+            floor = floor_calibration_from_json(_read_json(data / "floor.json"),
+                                                str(data / "floor.json"))
+        except CalibrationError as exc:
+            raise ProjectError(str(exc)) from None
     store = None
     if (data / "keyframes").exists():
         from engine.keyframes.store import KeyframeStore, KeyframeStoreError
@@ -253,6 +267,7 @@ def open_project(folder: str | Path) -> Project:
     return Project(
         name=str(index.get("name", folder.name)),
         intrinsics=intr if intr is not None else (store.intrinsics if store is not None else None),
+        floor_calibration=floor,
         keyframes=store,
         annotations=points,
         presenter_models=dict(pres["models"]),

@@ -67,6 +67,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--skip-jitter", action="store_true", help="skip the jitter scenario")
     parser.add_argument("--skip-distractor", action="store_true",
                         help="skip the second-person scenarios")
+    parser.add_argument("--skip-two-view", action="store_true",
+                        help="skip the two-view (floor distance) scenario")
+    parser.add_argument("--skip-robot", action="store_true",
+                        help="skip the closed-loop robot-camera scenario")
 
 
 # ------------------------------------------------------------------------------ running
@@ -210,6 +214,23 @@ def _distractor(args: argparse.Namespace) -> dict[str, Any]:
         out[case]["paper"].pop("source")
         out[case]["source"] = src
     return out
+
+
+def _two_view(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench import presenter_scenarios as sc
+
+    def run(frames: list[Frame]) -> list[Any]:
+        t = make_tracker("presenter", args.particles)
+        return [t.track(f) for f in frames]
+    out = sc.two_view(run, "report")
+    out["rail"] = sc.two_view(run, "rail")
+    return out
+
+
+def _robot(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench import presenter_scenarios as sc
+
+    return sc.robot_loop(lambda: make_tracker("presenter", args.particles), "report")
 
 
 def _lag_frames_measured(raw: np.ndarray, filt: np.ndarray, max_lag: int = 40) -> float:
@@ -370,6 +391,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if not args.skip_distractor:
             out["distractor"] = _distractor(args)
             log(f"distractor: {out['distractor']}")
+        if not args.skip_two_view:
+            out["two_view"] = _two_view(args)
+            log(f"two_view: {out['two_view']}")
+        if not args.skip_robot:
+            out["robot"] = _robot(args)
+            log(f"robot: {out['robot']}")
         if not args.skip_jitter:
             out["jitter"] = jitter_scenario(max(args.frames or 200, 120), args.particles)
             log(f"jitter: {out['jitter']}")

@@ -176,3 +176,90 @@ def distractor(run: Runner, case: str) -> dict[str, Any]:
     last_on = _iou(frames[-1].gt_box_xywh, results[-1].box_xywh) > 0.3
     return {"source": spec, "stolen_frames": stolen, "frames_near": near,
             "success_auc": round(s.success_auc, 4), "ends_on_presenter": bool(last_on)}
+
+
+TWO_VIEW = {
+    "report": "synthetic:frames={n},presenter=1,path=static,views=2,seed=3",
+    "rail": "synthetic:frames={n},presenter=1,path=rail,views=2,seed=5,presenter_look=1",
+}
+
+
+def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, Any]:
+    """The presenter's floor distance d from the second view against the studio's truth."""
+    from engine.floor import OverheadView
+    from engine.trackers.base import TrackState
+
+    spec = TWO_VIEW[variant].format(n=n)
+    frames = frames_of(spec)
+    results = run(frames)
+    errs, d_true, both = [], [], 0
+    for f, r in zip(frames, results, strict=True):
+        over = f.payload(OverheadView)
+        det = r.details
+        if r.state == TrackState.TRACKING:
+            both += 1
+        if over is None or over.floor_xy_m_true is None or det is None \
+                or getattr(det, "d_m", None) is None or over.floor_calibration is None:
+            continue
+        rx, ry = over.floor_calibration.robot_floor_xy_m
+        tx, ty = over.floor_xy_m_true
+        dt = float(np.hypot(tx - rx, ty - ry))
+        errs.append(abs(float(det.d_m) - dt))
+        d_true.append(dt)
+    out: dict[str, Any] = {"source": spec, "frames": len(frames), "frames_with_d": len(errs),
+                           "frames_tracking_both_views": both}
+    if errs:
+        e = np.asarray(errs)
+        out["d_err_m"] = {"median": round(float(np.median(e)), 4),
+                          "p95": round(float(np.quantile(e, 0.95)), 4),
+                          "max": round(float(e.max()), 4)}
+        out["d_true_m"] = {"median": round(float(np.median(d_true)), 3),
+                           "min": round(float(np.min(d_true)), 3),
+                           "max": round(float(np.max(d_true)), 3)}
+    return out
+
+
+ROBOT = {
+    "report": "robot-sim:frames={n},seed=3",
+    "check": "robot-sim:frames={n},seed=8,presenter_look=2",
+}
+
+
+def robot_loop(make: Callable[[], Any], variant: str = "report", n: int = 300) -> dict[str, Any]:
+    """Closed loop: the robot-mounted camera obeys the tracker; framing error in the TV
+    picture (px from the framing target) and the camera's jerk."""
+    from engine.loop import run_tracking
+    from engine.presenter.robot_sim import RobotCameraTruth
+    from engine.sources import open_source
+
+    spec = ROBOT[variant].format(n=n)
+    tracker = make()
+    errs: list[float] = []
+    pos: list[Any] = []
+    in_picture = 0
+    with open_source(spec) as src:
+        for rec in run_tracking(src, tracker):
+            t = rec.frame.payload(RobotCameraTruth)
+            if t is None:
+                continue
+            pos.append(np.asarray(t.T_world_tv)[:3, 3])
+            W, H = t.tv_image_wh
+            if t.presenter_tv_px is None:
+                continue
+            u, v = t.presenter_tv_px
+            p = tracker.params
+            errs.append(float(np.hypot(u - p.target_x_frac * W, v - p.target_y_frac * H)))
+            in_picture += int(0 <= u < W and 0 <= v < H)
+    dt = 1.0 / 30.0
+    P = np.asarray(pos)
+    acc = np.diff(P, n=2, axis=0) / dt**2
+    jerk = np.linalg.norm(np.diff(P, n=3, axis=0) / dt**3, axis=1)
+    e = np.asarray(errs)
+    return {"source": spec, "frames": len(P),
+            "framing_err_px": {"median": round(float(np.median(e)), 1),
+                               "p95": round(float(np.quantile(e, 0.95)), 1)},
+            "presenter_in_tv_picture": round(in_picture / max(len(e), 1), 4),
+            "jerk_m_s3": {"rms": round(float(np.sqrt(np.mean(jerk ** 2))), 3),
+                          "p95": round(float(np.quantile(jerk, 0.95)), 3)},
+            "max_accel_m_s2": round(float(np.max(np.linalg.norm(acc, axis=1))), 3),
+            "travel_m": round(float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1))), 3)}

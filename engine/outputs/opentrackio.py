@@ -142,6 +142,7 @@ class SampleInputs:
     sample_rate_hz: float
     intrinsics: Intrinsics | None = None
     recording: bool = False
+    transform_id: str = "Camera"  # "Talent" for the presenter's position
 
 
 @dataclass(frozen=True, slots=True)
@@ -191,7 +192,7 @@ class SampleBuilder:
             },
             "transforms": [
                 {
-                    "id": "Camera",
+                    "id": s.transform_id,
                     "translation": {"x": p.x_m, "y": p.y_m, "z": p.z_m},
                     "rotation": {"pan": p.pan_deg, "tilt": p.tilt_deg, "roll": p.roll_deg},
                 }

@@ -34,6 +34,7 @@ from engine.outputs import OutputError
 from engine.outputs import freed as fd
 from engine.outputs import opentrackio as otio
 from engine.outputs.studio_frame import StudioFrame, StudioPose
+from engine.outputs.talent import TalentPosition, TalentSettings
 from engine.outputs.timing import DelayCompensator, DelayParams
 from engine.params import Params, param
 
@@ -112,6 +113,7 @@ class OutputConfig:
     lens: otio.LensInfo = field(default_factory=otio.LensInfo)
     delays: DelayParams = field(default_factory=DelayParams)
     studio: StudioFrame = field(default_factory=StudioFrame)
+    talent: TalentSettings = field(default_factory=TalentSettings)
     queue_size: int = 64
     rate_hz: float | None = None  # on-air output rate; None: the source's frame rate
 
@@ -144,6 +146,8 @@ class OutputSample:
     submit_mono_s: float = 0.0  # set by OutputSet.submit (queue latency statistics)
     capture_mono_s: float = 0.0
     done_mono_s: float = 0.0
+    #: "camera" or "talent" (the presenter's position: engine.outputs.talent)
+    subject: str = "camera"
 
     def __post_init__(self) -> None:
         if self.T_world_cam is not None and self.T_world_cam.flags.writeable:
@@ -517,9 +521,18 @@ class OutputSet:
                             capture_mono_s=0.0, done_mono_s=0.0))
 
     def submit_record(self, record: Any) -> None:
-        """Queue an :class:`engine.loop.FrameRecord` (pose trackers; others are skipped)."""
+        """Queue an :class:`engine.loop.FrameRecord`: the camera pose of pose trackers, or
+        the talent position a tracker returned (:class:`TalentPosition`)."""
         res = record.result
         T = res.T_world_cam
+        subject = "camera"
+        if T is None:
+            talent = res.commands_of(TalentPosition)
+            if talent:
+                T, subject = talent[-1].T_world_talent(), "talent"
+            elif self._last_sample is not None and self._last_sample.subject == "talent":
+                # the presenter not located this frame: the last position, flagged
+                T, subject = self._last_sample.T_world_cam, "talent"
         self.submit(
             OutputSample(
                 seq=int(record.seq),
@@ -530,6 +543,7 @@ class OutputSet:
                 wall_time_s=time.time(),
                 capture_mono_s=float(getattr(record, "capture_mono_s", 0.0) or 0.0),
                 done_mono_s=float(getattr(record, "done_mono_s", 0.0) or 0.0),
+                subject=subject,
             )
         )
 
@@ -645,7 +659,14 @@ class OutputSet:
             try:
                 if t.spec.protocol == "freed":
                     if freed_bytes is None:
-                        freed_bytes = freed_packet(pose, cfg.freed, sample.intrinsics, cfg.lens)
+                        if sample.subject == "talent":
+                            freed_bytes = freed_packet(
+                                pose, FreeDSettings(camera_id=cfg.talent.freed_camera_id,
+                                                    lens_mapping=fd.ZoomFocusMapping.RAW),
+                                None, cfg.lens)
+                        else:
+                            freed_bytes = freed_packet(pose, cfg.freed, sample.intrinsics,
+                                                       cfg.lens)
                     t.send([freed_bytes])
                 else:
                     enc = t.spec.encoding
@@ -658,7 +679,10 @@ class OutputSet:
                                              else 0.0) or time.time(),
                                 sequence_number=seq,
                                 sample_rate_hz=self._rate_hz,
-                                intrinsics=sample.intrinsics,
+                                intrinsics=(sample.intrinsics if sample.subject == "camera"
+                                            else None),
+                                transform_id=("Camera" if sample.subject == "camera"
+                                              else cfg.talent.transform_id),
                             )
                         )
                         otio_payloads[enc] = otio.encode_payload(sample_dict, enc)

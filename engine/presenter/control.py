@@ -6,9 +6,12 @@ Errors
     eq. (8)  e_d = d - d*             depth error against the target distance d*.
 
 Commands
-    A proportional velocity command v = gain * e per axis, limited to ``max_speed`` and
-    changed by at most ``max_accel * dt`` per update (no abrupt accelerations). While the
-    tracker is LOST the target velocity is zero: the robot brakes within its acceleration
+    A proportional-integral velocity command v = gain * e + ki * integral(e dt) per axis,
+    limited to ``max_speed`` and changed by at most ``max_accel * dt`` per update (no abrupt
+    accelerations). The integral removes the steady lag of a P controller behind a presenter
+    walking at constant speed (a P controller lags by v / gain); it stops growing while the
+    command is at its speed limit (anti-windup). While the tracker is LOST the target
+    velocity is zero and the integral is cleared: the robot brakes within its acceleration
     limit and holds the last position (the paper: "the robot does not drift").
 
 Message (one UDP datagram per frame, UTF-8 JSON, to 127.0.0.1:9870 by default)::
@@ -44,6 +47,7 @@ DEFAULT_PORT = 9870
 @dataclass(frozen=True, slots=True)
 class ControlLimits:
     gain: float = 1.0
+    ki: float = 0.0  # integral gain (1/s^2)
     max_speed_px_s: float = 200.0
     max_accel_px_s2: float = 400.0
     max_speed_m_s: float = 0.5
@@ -115,12 +119,25 @@ class ControlLoop:
     def __init__(self) -> None:
         self.seq = 0
         self._v = (0.0, 0.0, 0.0)
+        self._i = [0.0, 0.0, 0.0]  # integral of the errors (px s, px s, m s)
         self._t_prev: float | None = None
 
     def reset(self) -> None:
         self.seq = 0
         self._v = (0.0, 0.0, 0.0)
+        self._i = [0.0, 0.0, 0.0]
         self._t_prev = None
+
+    def _pi(self, k: int, e: float | None, active: bool, limits: ControlLimits, dt: float,
+            max_speed: float) -> float:
+        if not active or e is None:
+            self._i[k] = 0.0
+            return 0.0
+        v = limits.gain * e + limits.ki * self._i[k]
+        if abs(v) < max_speed or (v > 0) != (e > 0):  # anti-windup at the speed limit
+            self._i[k] += e * dt
+            v = limits.gain * e + limits.ki * self._i[k]
+        return v
 
     def update(self, *, t_s: float, state: str, x_px: float, y_px: float, d_m: float | None,
                target_xy_px: tuple[float, float], target_d_m: float, limits: ControlLimits,
@@ -132,10 +149,9 @@ class ControlLoop:
         e_f = image_error(x_px, y_px, *target_xy_px)
         e_d = depth_error(d_m, target_d_m) if d_m is not None else None
         tracking = state == "TRACKING"
-        g = limits.gain
-        tx = g * e_f[0] if tracking else 0.0
-        ty = g * e_f[1] if tracking else 0.0
-        td = g * e_d if (tracking and e_d is not None) else 0.0
+        tx = self._pi(0, e_f[0], tracking, limits, dt, limits.max_speed_px_s)
+        ty = self._pi(1, e_f[1], tracking, limits, dt, limits.max_speed_px_s)
+        td = self._pi(2, e_d, tracking, limits, dt, limits.max_speed_m_s)
         vx = _limit(tx, self._v[0], limits.max_speed_px_s, limits.max_accel_px_s2, dt)
         vy = _limit(ty, self._v[1], limits.max_speed_px_s, limits.max_accel_px_s2, dt)
         vd = _limit(td, self._v[2], limits.max_speed_m_s, limits.max_accel_m_s2, dt)

@@ -135,6 +135,9 @@ class PresenterParams(Params):
                                  help="first-frame patches from the source's per-part boxes "
                                  "(built-in studio) instead of the automatic split")
     model_path: str = param("", help="saved model folder (model.json); empty = first frame's box")
+    floor_path: str = param("", help="floor calibration of the second view: a floor.json file "
+                            "or a studio project folder; empty = the source's (built-in "
+                            "studio)")
     # framing / robot control (Sec. III-D)
     target_x_frac: float = param(0.5, lo=0.0, hi=1.0, step=0.01,
                                  help="framing target x* as a fraction of the image width")
@@ -142,11 +145,14 @@ class PresenterParams(Params):
                                  help="framing target y* as a fraction of the image height")
     target_d_m: float = param(3.0, lo=0.0, hi=100.0, step=0.1,
                               help="target depth d* (m) from the robot")
-    control_gain: float = param(1.0, lo=0.0, hi=100.0, step=0.1,
+    control_gain: float = param(3.0, lo=0.0, hi=100.0, step=0.1,
                                 help="proportional gain: velocity command = gain x error (1/s)")
-    max_speed_px_s: float = param(200.0, lo=0.0, hi=10000.0, step=10.0,
+    control_ki: float = param(2.0, lo=0.0, hi=100.0, step=0.1,
+                              help="integral gain (1/s^2): removes the steady lag behind a "
+                              "presenter walking at constant speed (0 = proportional only)")
+    max_speed_px_s: float = param(400.0, lo=0.0, hi=10000.0, step=10.0,
                                   help="velocity limit of the image-axis commands (px/s)")
-    max_accel_px_s2: float = param(400.0, lo=0.0, hi=100000.0, step=10.0,
+    max_accel_px_s2: float = param(800.0, lo=0.0, hi=100000.0, step=10.0,
                                    help="acceleration limit of the image-axis commands (px/s^2)")
     max_speed_m_s: float = param(0.5, lo=0.0, hi=10.0, step=0.05,
                                  help="velocity limit of the depth command (m/s)")

@@ -8,6 +8,8 @@ Built in:
 - ``synthetic[:key=value,...]`` - the built-in virtual studio (see ``engine.studio``)
 - ``ptz-sim[:key=value,...]`` - ball on a circle seen by a stepping pan-tilt camera
   (``engine.ptz.sim``; closes the pan/tilt loop with the ``ptz`` tracker)
+- ``robot-sim[:key=value,...]`` - the built-in studio from a robot-mounted camera obeying the
+  presenter tracker (``engine.presenter.robot_sim``; closes the robot-camera loop)
 - ``camera:N`` - live webcam N through OpenCV
 - ``realsense[:serial=...,width=...,...]`` - a RealSense depth camera through its SDK;
   ``path/to/file.bag`` - a RealSense recording (see ``engine.sources.realsense``)
@@ -38,7 +40,7 @@ __all__ = [
 ]
 
 #: where source specs are declared: this package, and sources that live with their algorithm
-SOURCE_PLACES = (__name__, "engine.ptz.sim")
+SOURCE_PLACES = (__name__, "engine.ptz.sim", "engine.presenter.robot_sim")
 
 REGISTRY: Registry[SourceSpec] = Registry(
     "source", "SOURCES", SourceSpec, places=SOURCE_PLACES, error=SourceError

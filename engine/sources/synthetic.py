@@ -31,6 +31,8 @@ person2_look (1)       the second person's look (0 = dressed like the presenter)
 person2_speed (0.7)    the second person's walking speed, m/s
 person2_start (0)      first frame with the second person in the studio
 lighting (default)     default | warm | cool | dim | bright | ramp (dark to light) | side
+views (1)              2: also the overhead camera (engine.studio.views) with its floor
+                       calibration, as a second view of every frame
 ball (0)               1: the red target ball on a circle
 ball_period_s (30)     ball circle period, s
 ball_circle_m (1.0)    ball circle radius, m
@@ -146,6 +148,7 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "person2_speed": _float(0.0, 10.0, open_lo=True),
     "person2_start": _int(0),
     "lighting": _choice(*LIGHTING_NAMES),
+    "views": _int(1, 2),
     "ball": _bool,
     "ball_period_s": _float(0.0, open_lo=True),
     "ball_circle_m": _float(0.0, 3.0),
@@ -270,6 +273,7 @@ def config_from_options(opts: dict[str, str]) -> Any:
         threads=o.get("threads", 1),
         person2=person2,
         lighting=o.get("lighting", "default"),
+        views=o.get("views", 1),
     )
 
 

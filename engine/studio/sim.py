@@ -143,10 +143,13 @@ class StudioConfig:
     threads: int = 1  # renderer threads (0: all cores)
     person2: PresenterScript | None = None  # a second person (another look, label 6)
     lighting: str = "default"  # a variant of ``engine.studio.lighting.LIGHTINGS``
+    views: int = 1  # 2: also the overhead camera (engine.studio.views), an OverheadView payload
 
     def __post_init__(self) -> None:
         if self.lighting not in LIGHTINGS:
             raise ValueError(f"lighting {self.lighting!r} is not one of {', '.join(LIGHTINGS)}")
+        if self.views not in (1, 2):
+            raise ValueError(f"views must be 1 or 2, got {self.views}")
 
 
 class Studio:
@@ -162,6 +165,49 @@ class Studio:
         light = LIGHTINGS[self.config.lighting]
         return Renderer(self.scene, self.intrinsics, self.config.threads,
                         None if light.name == "default" else light.dynamic_light())
+
+    @cached_property
+    def renderer2(self) -> Renderer:
+        """The second (overhead) camera's renderer (``views=2``)."""
+        from engine.studio.views import OVERHEAD
+
+        light = LIGHTINGS[self.config.lighting]
+        return Renderer(self.scene, OVERHEAD.intrinsics(self.config.width, self.config.height),
+                        self.config.threads,
+                        None if light.name == "default" else light.dynamic_light())
+
+    @cached_property
+    def floor_calibration(self) -> Any:
+        """The overhead camera's exact floor calibration (``views=2``)."""
+        from engine.studio.views import OVERHEAD
+
+        return OVERHEAD.floor_calibration(self.config.width, self.config.height)
+
+    def _second_view(self, index: int, prims: Prims | None, feet: F64 | None) -> Any:
+        """The overhead camera's frame of the same instant, as an ``OverheadView`` payload."""
+        from engine.floor import OverheadView
+        from engine.studio.views import OVERHEAD
+
+        cfg = self.config
+        out = self.renderer2.render(OVERHEAD.T_world_cam(), prims)
+        color = out.color_bgr
+        light = LIGHTINGS[cfg.lighting]
+        if not light.is_identity:
+            color = apply_gain(color, light.gain_bgr(index / max(cfg.frames - 1, 1)))
+        if cfg.color_noise > 0:
+            color = sensor.add_color_noise(color, cfg.color_noise,
+                                           np.random.default_rng([cfg.seed, index, 23]))
+        boxes = label_boxes(out.labels, 7)
+        sel = boxes[[LABEL_HEAD, LABEL_TORSO, LABEL_LEGS]]
+        box = None
+        if int(sel[:, 4].sum()) >= max(1, round(1e-3 * cfg.width * cfg.height)):
+            vis = sel[sel[:, 4] > 0]
+            box = _xywh(vis[:, 0].min(), vis[:, 1].min(), vis[:, 2].max(), vis[:, 3].max())
+        return OverheadView(color_bgr=color, box_xywh=box,
+                            floor_calibration=self.floor_calibration,
+                            timestamp_s=index / cfg.fps,
+                            floor_xy_m_true=None if feet is None
+                            else (float(feet[0]), float(feet[1])))
 
     @cached_property
     def _vignette(self) -> NDArray[np.float32] | None:
@@ -205,7 +251,8 @@ class Studio:
             occ_centre = occluder_centre(t_s)
             parts.append(occluder_prims(occ_centre, self.scene))
             truth["occluder_pos_world"] = _tup(occ_centre)
-        out = self.renderer.render(T_world_cam, concat_prims(*parts) if parts else None)
+        prims = concat_prims(*parts) if parts else None
+        out = self.renderer.render(T_world_cam, prims)
         color, depth, labels = out.color_bgr, out.depth_m, out.labels
         # exposure and white balance of the lighting variant (before the sensor noise)
         light = LIGHTINGS[cfg.lighting]
@@ -282,6 +329,10 @@ class Studio:
         truth["labels"] = readonly(labels)
         exact_depth = truth.pop("depth_exact_m", None)
         labels_payload = StudioLabels(labels=truth.pop("labels"), depth_exact_m=exact_depth)
+        payloads: tuple[Any, ...] = (StudioTruth(**truth), labels_payload)
+        if cfg.views == 2:
+            payloads = (*payloads, self._second_view(
+                index, prims, None if keypoints is None else keypoints["feet"]))
         return Frame(
             index=index,
             timestamp_s=t_s,
@@ -290,7 +341,7 @@ class Studio:
             depth_m=depth,
             gt_T_world_cam=T_world_cam,
             gt_box_xywh=presenter_box,
-            payloads=(StudioTruth(**truth), labels_payload),
+            payloads=payloads,
         )
 
 

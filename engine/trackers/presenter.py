@@ -11,9 +11,15 @@ holds the last good estimate. Each frame's correction is returned as a
 when ``control_udp`` is on); the pipeline's robot-control sink sends it - the tracker does no
 I/O. ``details`` is a :class:`PresenterDetails`.
 
-Optional second view: a frame with an :class:`engine.presenter.twoview.OverheadView`
-payload (its box on the first frame) is tracked by a second filter; with the payload's floor
-calibration the output adds the floor distance d.
+Optional second view: a frame with an :class:`engine.floor.OverheadView` payload (the
+presenter's box in it on the first frame) is tracked by a second filter with its own model;
+with a floor calibration (``floor_path``: a floor.json or a studio project; else the
+payload's) the output adds the presenter's floor position, height and the distance d from
+the robot (``engine.floor.FloorCalibration.locate``), and a
+:class:`engine.outputs.talent.TalentPosition` command (the talent tracking output the
+pose-output sink sends as its own OpenTrackIO transform / FreeD camera id). Loss is decided
+on both views (the paper's Sec. III-C.7: a loss in either view is a loss); each view
+re-acquires on its own.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ import numpy as np
 from engine.arrays import XYWH, xywh
 from engine.errors import TrackerError
 from engine.frames import Frame
+from engine.outputs.talent import TalentPosition
 from engine.presenter.control import ControlCommand, RobotCameraCommand
 from engine.presenter.params import PresenterParams
 from engine.presenter.twoview import OverheadView
@@ -55,6 +62,12 @@ class PresenterDetails(TrackDetails):
     control: ControlCommand
     model_warnings: tuple[str, ...] = ()
     overhead_xyh: XYH | None = None
+    #: the second view: its own state, box, and the presenter located on the floor
+    overhead_state: str | None = None
+    overhead_box_xywh: tuple[float, float, float, float] | None = None
+    floor_xy_m: tuple[float, float] | None = None
+    height_m: float | None = None  # standing height from the second view (head height)
+    frontal_state: str = "TRACKING"
     #: contrast loss statistic at the tested state: 0 = the target's own colour match,
     #: 1 = the most target-like background's (NaN until known)
     loss_z: float = float("nan")
@@ -81,6 +94,8 @@ class PresenterTracker:
         self._control: Any = None
         self.model: Any = None
         self._t_prev: float | None = None
+        self._floor: Any = None  # FloorCalibration loaded from floor_path
+        self._floor_path_loaded: str | None = None
 
     @property
     def params(self) -> PresenterParams:
@@ -159,13 +174,37 @@ class PresenterTracker:
         self._view = ViewTracker(model, p, fps)
         over = frame.payload(OverheadView)
         if over is not None and over.box_xywh is not None:
-            omodel = model_from_box(over.color_bgr, over.box_xywh, 2, p.n_bins)
+            omodel = model_from_box(over.color_bgr, over.box_xywh, p.auto_patches, p.n_bins,
+                                    grey_world=p.grey_world)
             self._overhead = ViewTracker(omodel, p, fps)
         return True
 
+    def _floor_calibration(self, over: OverheadView) -> Any:
+        """``floor_path``'s calibration (a floor.json or a studio project), else the
+        payload's."""
+        path = self._params.floor_path
+        if not path:
+            return over.floor_calibration
+        if self._floor_path_loaded != path:
+            from pathlib import Path
+
+            from engine.floor import load_floor_calibration
+
+            target = Path(path)
+            if target.is_dir():
+                from engine.project import open_project
+
+                calib = open_project(target).floor_calibration
+                if calib is None:
+                    raise TrackerError(f"presenter tracker: {target}: the project has no "
+                                       "floor calibration")
+            else:
+                calib = load_floor_calibration(target)
+            self._floor, self._floor_path_loaded = calib, path
+        return self._floor
+
     def track(self, frame: Frame) -> TrackResult:
         from engine.presenter.control import ControlLimits, ControlLoop
-        from engine.presenter.twoview import fuse
 
         bgr = _as_bgr(frame)
         if self._view is None and not self._init(frame, bgr):
@@ -181,19 +220,33 @@ class PresenterTracker:
         out = self._view.step(bgr)
         d_m = None
         over_out = None
+        floor_xy = None
+        height = None
+        obox = None
         over = frame.payload(OverheadView)
         if self._overhead is not None and over is not None:
-            over_out = self._overhead.step(over.color_bgr)
-            _, _, d_m = fuse(0.0, 0.0, over_out.filtered_xyh[:2], over.floor_calibration)
+            over_out = self._overhead.step(_as_bgr_image(over.color_bgr))
+            ox, oy, oh = over_out.raw_xyh
+            ow = oh * self._overhead.model.aspect
+            obox = (ox - ow / 2.0, oy - oh / 2.0, ow, oh)
+            calib = self._floor_calibration(over)
+            if calib is not None and over_out.state == "TRACKING":
+                fx_m, fy_m, height = calib.locate(obox)
+                floor_xy = (fx_m, fy_m)
+                rx, ry = calib.robot_floor_xy_m
+                d_m = float(np.hypot(fx_m - rx, fy_m - ry))
+        # the paper's rule: a loss in either view is a loss
+        lost = out.state != "TRACKING" or (over_out is not None and over_out.state != "TRACKING")
         H, W = bgr.shape[:2]
         fx, fy, _fh = out.filtered_xyh
         if self._control is None:
             self._control = ControlLoop()
         cmd = self._control.update(
-            t_s=frame.timestamp_s, state=out.state, x_px=fx, y_px=fy, d_m=d_m,
+            t_s=frame.timestamp_s, state="LOST" if lost else "TRACKING", x_px=fx, y_px=fy,
+            d_m=d_m,
             target_xy_px=(p.target_x_frac * W, p.target_y_frac * H), target_d_m=p.target_d_m,
-            limits=ControlLimits(p.control_gain, p.max_speed_px_s, p.max_accel_px_s2,
-                                 p.max_speed_m_s, p.max_accel_m_s2))
+            limits=ControlLimits(p.control_gain, p.control_ki, p.max_speed_px_s,
+                                 p.max_accel_px_s2, p.max_speed_m_s, p.max_accel_m_s2))
         robot = RobotCameraCommand(
             cmd, (p.control_host, int(p.control_port)) if p.control_udp else None)
         x, y, h = out.raw_xyh
@@ -207,7 +260,7 @@ class PresenterTracker:
             box_labels=("presenter", *self._view.model.names),
             crosshair_uv=(fx, fy),
         )
-        state = TrackState.TRACKING if out.state == "TRACKING" else TrackState.LOST
+        state = TrackState.LOST if lost else TrackState.TRACKING
         details = PresenterDetails(
             raw_xyh=_xyh(out.raw_xyh), filtered_xyh=_xyh(out.filtered_xyh),
             p_col=float(out.p_col), p_ref=float(out.p_ref), p_min=float(out.p_min),
@@ -216,6 +269,9 @@ class PresenterTracker:
             lag_s=float(self._view.jitter.lag_s),
             d_m=d_m, control=cmd, model_warnings=tuple(self._view.model.warnings),
             overhead_xyh=None if over_out is None else _xyh(over_out.filtered_xyh),
+            overhead_state=None if over_out is None else over_out.state,
+            overhead_box_xywh=obox, floor_xy_m=floor_xy, height_m=height,
+            frontal_state=out.state,
         )
         bx, bw = out.box_cx_w if out.box_cx_w is not None else (x, w)
         return TrackResult(
@@ -225,11 +281,27 @@ class PresenterTracker:
             timings_ms=out.timings_ms,
             overlay=overlay,
             details=details,
-            commands=(robot,),
-            message="" if state is TrackState.TRACKING else
-            f"lost for {out.lost_frames} frames: colour likelihood {out.p_col:.3g}, "
-            f"Pmin {out.p_min:.3g}",
+            commands=(robot,) if floor_xy is None else (robot, TalentPosition(floor_xy, height)),
+            message="" if state is TrackState.TRACKING else _lost_message(p, out, over_out),
         )
+
+
+def _lost_message(p: PresenterParams, out: Any, over_out: Any) -> str:
+    if out.state != "TRACKING":
+        view, o = "", out
+    else:
+        view, o = "second view ", over_out
+    if p.loss_test == "contrast":
+        return (f"{view}lost for {o.lost_frames} frames: colour contrast z {o.loss_z:.2f} > "
+                f"{p.loss_contrast:.2f}")
+    return (f"{view}lost for {o.lost_frames} frames: colour likelihood {o.p_col:.3g} < Pmin "
+            f"{o.p_min:.3g}")
+
+
+def _as_bgr_image(img: np.ndarray) -> np.ndarray:
+    import cv2
+
+    return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if img.ndim == 2 else img
 
 
 def _xyh(v: Any) -> XYH:

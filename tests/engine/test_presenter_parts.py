@@ -8,6 +8,7 @@ import socket
 import numpy as np
 import pytest
 
+from engine.errors import CalibrationError
 from engine.presenter import PresenterError
 from engine.presenter import filter as pf
 from engine.presenter.control import (
@@ -107,7 +108,7 @@ def test_floor_homography_gives_distance() -> None:
     assert calib.distance_m(100, 400) == pytest.approx(np.hypot(1.0, 1.0))
     assert fuse(10.0, 20.0, (540, 400), calib) == pytest.approx((10.0, 20.0, np.hypot(1, 1)))
     assert fuse(10.0, 20.0, None, calib)[2] is None
-    with pytest.raises(PresenterError, match="collinear"):
+    with pytest.raises(CalibrationError, match="collinear"):
         calibrate_floor([(0, 0), (1, 1), (2, 2), (0, 5)], floor)
 
 

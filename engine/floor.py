@@ -1,0 +1,275 @@
+"""The studio floor seen by a second camera: floor calibration and the second view's payload.
+
+The VR-TV paper's overhead camera (Sec. III-A) is "calibrated with respect to the robot base
+frame, in order to estimate the current distance with respect to the robot". Here its
+calibration is a floor homography ``H_floor_img`` (image px -> floor metres, z = 0 plane)
+from four image points whose floor coordinates are known (clicked in the set-up, entered in
+metres, saved in the studio project), plus the robot's floor position.
+
+Locating the presenter: the homography alone maps a point *on the floor* (the feet), but a
+camera looking down sees a walking person's feet spread by the stride and the body leaning
+towards the image of the nadir. So the camera itself is recovered from the homography
+(:func:`camera_from_homography`: K [r1 r2 t] ~ H^-1 with the principal point at the image
+centre and the focal length given, or solved from r1 . r2 = 0 and |r1| = |r2|) and the
+presenter is modelled as a vertical segment from (X, Y, 0) to (X, Y, height): the bottom
+centre of the box is the image of its foot, the top centre of its head - four linear
+equations in (X, Y, height), solved in the least-squares sense (:meth:`FloorCalibration.
+locate`). The silhouette's lowest point is the front of the shoes and its top the far side of
+the head, so the segment found is moved away from the camera by half the depth of a standing
+adult (``BODY_HALF_DEPTH_M``, 0.1 m: anthropometry, not fitted). d is the floor distance of
+(X, Y) from the robot.
+
+:class:`OverheadView` is the frame payload a two-view source attaches: the second camera's
+image of the same instant (and its time stamp), the presenter's box in it on the first frame
+(to initialise the second filter) and the floor calibration.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from engine.errors import CalibrationError
+from engine.frames import FramePayload, readonly
+
+F64 = NDArray[np.float64]
+#: half the front-to-back depth of a standing adult (chest about 0.2 m deep)
+BODY_HALF_DEPTH_M = 0.1
+FLOOR_FORMAT = "studiotrack.floor_homography"
+FLOOR_VERSION = 1
+
+
+@dataclass(frozen=True, slots=True)
+class FloorCalibration:
+    """Homography image (px) -> floor (m), the four points it came from, the robot's floor
+    position (m)."""
+
+    H_floor_img: F64
+    robot_floor_xy_m: tuple[float, float] = (0.0, 0.0)
+    image_points_px: tuple[tuple[float, float], ...] = ()
+    floor_points_m: tuple[tuple[float, float], ...] = ()
+    image_wh: tuple[int, int] | None = None  # the second camera's image size
+    f_px: float | None = None  # its focal length; None = solved from the homography
+
+    def __post_init__(self) -> None:
+        readonly(self.H_floor_img)
+
+    def camera(self) -> F64 | None:
+        """The 3x4 camera matrix P (floor frame, z up) or None if it cannot be recovered."""
+        if self.image_wh is None:
+            return None
+        try:
+            return camera_from_homography(self.H_floor_img, self.image_wh, self.f_px)
+        except CalibrationError:
+            return None
+
+    def locate(self, box_xywh: Sequence[float]) -> tuple[float, float, float | None]:
+        """(X, Y) on the floor and the height (m) of a standing person whose box this is.
+
+        With a recovered camera the person is a vertical segment whose foot projects to the
+        box's bottom centre and whose top to the top centre (least squares); without one,
+        the bottom centre through the homography and no height.
+        """
+        x, y, w, h = (float(v) for v in box_xywh)
+        u = x + 0.5 * w
+        P = self.camera()
+        if P is None:
+            fx, fy = self.floor_point(u, y + h)
+            return (fx, fy, None)
+        rows, rhs = [], []
+        for v_img, z in ((y + h, 0.0), (y, None)):
+            # u (P3 . X) = P1 . X and v (P3 . X) = P2 . X, X = (X, Y, z, 1); z unknown on top
+            for k, obs in ((0, u), (1, v_img)):
+                a = obs * P[2] - P[k]
+                if z is None:
+                    rows.append([a[0], a[1], a[2]])
+                    rhs.append(-a[3])
+                else:
+                    rows.append([a[0], a[1], 0.0])
+                    rhs.append(-(a[3] + a[2] * z))
+        A, b = np.asarray(rows), np.asarray(rhs)
+        # equal weight for the four equations: scale each to unit row norm
+        n = np.maximum(np.linalg.norm(A, axis=1), 1e-12)
+        sol, *_ = np.linalg.lstsq(A / n[:, None], b / n, rcond=None)
+        # the silhouette's near foot and far head: the body axis is half a body deeper
+        C = -np.linalg.solve(P[:, :3], P[:, 3])
+        away = sol[:2] - C[:2]
+        norm = float(np.linalg.norm(away))
+        xy = sol[:2] + (BODY_HALF_DEPTH_M * away / norm if norm > 1e-9 else 0.0)
+        return (float(xy[0]), float(xy[1]), float(sol[2]))
+
+    def floor_point(self, u: float, v: float) -> tuple[float, float]:
+        p = self.H_floor_img @ np.array([u, v, 1.0])
+        if abs(p[2]) < 1e-12:
+            raise CalibrationError(f"image point ({u:.1f}, {v:.1f}) maps to infinity on the "
+                                   "floor")
+        return (float(p[0] / p[2]), float(p[1] / p[2]))
+
+    def distance_m(self, u: float, v: float) -> float:
+        """d: floor distance of the image point (u, v) from the robot."""
+        fx, fy = self.floor_point(u, v)
+        return float(math.hypot(fx - self.robot_floor_xy_m[0], fy - self.robot_floor_xy_m[1]))
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": FLOOR_FORMAT, "version": FLOOR_VERSION,
+            "image_points_px": [list(map(float, p)) for p in self.image_points_px],
+            "floor_points_m": [list(map(float, p)) for p in self.floor_points_m],
+            "robot_floor_xy_m": list(self.robot_floor_xy_m),
+            "H_floor_img": self.H_floor_img.tolist(),
+            "image_wh": None if self.image_wh is None else list(self.image_wh),
+            "f_px": self.f_px,
+        }
+
+
+def _focal_from_homography(A: F64) -> float:
+    """f from r1 . r2 = 0 and |r1| = |r2| (A = floor -> image homography with the principal
+    point at the origin): the two constraints of Zhang's calibration with one unknown."""
+    h1, h2 = A[:, 0], A[:, 1]
+    num, den = [], []
+    # (h1x h2x + h1y h2y) / f^2 + h1z h2z = 0
+    num.append(-(h1[0] * h2[0] + h1[1] * h2[1]))
+    den.append(h1[2] * h2[2])
+    # (|h1xy|^2 - |h2xy|^2) / f^2 + h1z^2 - h2z^2 = 0
+    num.append(-(h1[0] ** 2 + h1[1] ** 2 - h2[0] ** 2 - h2[1] ** 2))
+    den.append(h1[2] ** 2 - h2[2] ** 2)
+    d = np.asarray(den)
+    nn = np.asarray(num)
+    # least squares in 1/f^2: den * f^2 = num  <=>  den = num * (1/f^2)
+    inv_f2 = float(np.dot(nn, d) / max(float(np.dot(nn, nn)), 1e-300))
+    if not inv_f2 > 0:
+        raise CalibrationError("floor calibration: the focal length cannot be recovered from "
+                               "the four points (camera looking straight down?); enter it")
+    return 1.0 / math.sqrt(inv_f2)
+
+
+def camera_from_homography(H_floor_img: F64, image_wh: Sequence[int],
+                           f_px: float | None = None) -> F64:
+    """P = K [r1 r2 r3 t] of the camera that sees the floor through ``H_floor_img``."""
+    W, H = (int(v) for v in image_wh)
+    cx, cy = (W - 1) / 2.0, (H - 1) / 2.0
+    G = np.linalg.inv(np.asarray(H_floor_img, dtype=np.float64))  # floor -> image
+    G0 = np.array([[1, 0, -cx], [0, 1, -cy], [0, 0, 1.0]]) @ G  # principal point at 0
+    f = float(f_px) if f_px else _focal_from_homography(G0)
+    K = np.array([[f, 0, cx], [0, f, cy], [0, 0, 1.0]])
+    M = np.linalg.inv(K) @ G
+    lam = 2.0 / (np.linalg.norm(M[:, 0]) + np.linalg.norm(M[:, 1]))
+    if M[2, 2] * lam < 0:  # the floor origin in front of the camera
+        lam = -lam
+    r1, r2, t = lam * M[:, 0], lam * M[:, 1], lam * M[:, 2]
+    R = np.stack([r1, r2, np.cross(r1, r2)], axis=1)
+    U, _, Vt = np.linalg.svd(R)
+    R = U @ Vt
+    return np.asarray(K @ np.hstack([R, t[:, None]]), dtype=np.float64)
+
+
+def calibrate_floor(image_pts_px: Sequence[Sequence[float]],
+                    floor_pts_m: Sequence[Sequence[float]],
+                    robot_floor_xy_m: Sequence[float] = (0.0, 0.0),
+                    image_wh: Sequence[int] | None = None,
+                    f_px: float | None = None) -> FloorCalibration:
+    """Homography from exactly four image points and their known floor coordinates.
+
+    ``image_wh`` (the second camera's image size) and ``f_px`` (its focal length, or None to
+    solve it) let :meth:`FloorCalibration.locate` recover the camera.
+    """
+    try:
+        img = np.asarray(image_pts_px, dtype=np.float64)
+        flo = np.asarray(floor_pts_m, dtype=np.float64)
+        robot = tuple(float(v) for v in robot_floor_xy_m)
+    except (TypeError, ValueError) as exc:
+        raise CalibrationError(f"floor calibration: points must be numbers ({exc})") from None
+    if img.shape != (4, 2) or flo.shape != (4, 2):
+        n_img = img.shape[0] if img.ndim else 0
+        n_flo = flo.shape[0] if flo.ndim else 0
+        raise CalibrationError(f"floor calibration needs 4 image and 4 floor points, got "
+                               f"{n_img} and {n_flo}")
+    if len(robot) != 2 or not all(math.isfinite(v) for v in robot):
+        raise CalibrationError(f"floor calibration: robot position must be 2 numbers, got "
+                               f"{list(robot_floor_xy_m)}")
+    for name, pts in (("image", img), ("floor", flo)):
+        if not np.all(np.isfinite(pts)):
+            raise CalibrationError(f"floor calibration: {name} points must be finite")
+        # any three collinear points make the homography degenerate
+        for i in range(4):
+            a, b, c = (pts[j] for j in range(4) if j != i)
+            u, w = b - a, c - a
+            if abs(u[0] * w[1] - u[1] * w[0]) < 1e-6 * max(1.0, float(np.ptp(pts)) ** 2):
+                raise CalibrationError(f"floor calibration: three {name} points are collinear")
+    wh = None
+    if image_wh is not None:
+        try:
+            wh = (int(image_wh[0]), int(image_wh[1]))
+        except (TypeError, ValueError, IndexError):
+            raise CalibrationError(f"floor calibration: image size must be 2 integers, got "
+                                   f"{image_wh!r}") from None
+        if wh[0] <= 0 or wh[1] <= 0:
+            raise CalibrationError(f"floor calibration: image size must be positive, got {wh}")
+    if f_px is not None and not (math.isfinite(float(f_px)) and float(f_px) > 0):
+        raise CalibrationError(f"floor calibration: focal length must be > 0 px, got {f_px}")
+    H = cv2.getPerspectiveTransform(img.astype(np.float32), flo.astype(np.float32))
+    return FloorCalibration(np.asarray(H, dtype=np.float64), (robot[0], robot[1]),
+                            tuple((float(u), float(v)) for u, v in img),
+                            tuple((float(x), float(y)) for x, y in flo), wh,
+                            None if f_px is None else float(f_px))
+
+
+def floor_calibration_from_json(doc: Any, where: str = "floor calibration") -> FloorCalibration:
+    """The calibration of :meth:`FloorCalibration.to_json` (rebuilt from its points)."""
+    if not isinstance(doc, Mapping) or doc.get("format") != FLOOR_FORMAT:
+        raise CalibrationError(f"{where}: not a {FLOOR_FORMAT} document")
+    version = doc.get("version")
+    if not isinstance(version, int) or version > FLOOR_VERSION:
+        raise CalibrationError(f"{where}: version {version!r} is newer than this StudioTrack "
+                               f"supports ({FLOOR_VERSION})")
+    try:
+        return calibrate_floor(doc["image_points_px"], doc["floor_points_m"],
+                               doc.get("robot_floor_xy_m", (0.0, 0.0)), doc.get("image_wh"),
+                               doc.get("f_px"))
+    except KeyError as exc:
+        raise CalibrationError(f"{where}: missing {exc}") from None
+    except CalibrationError as exc:
+        raise CalibrationError(f"{where}: {exc}") from None
+
+
+def save_floor_calibration(path: str | Path, calib: FloorCalibration) -> None:
+    from engine.persist import atomic_write_json
+
+    atomic_write_json(Path(path), calib.to_json())
+
+
+def load_floor_calibration(path: str | Path) -> FloorCalibration:
+    from engine.persist import read_json_file
+
+    path = Path(path)
+    doc = read_json_file(path, CalibrationError, missing="no such floor calibration")
+    return floor_calibration_from_json(doc, str(path))
+
+
+@dataclass(frozen=True, slots=True)
+class OverheadView(FramePayload):
+    """A second (overhead or side) camera's image of the same instant, for the floor distance.
+
+    ``box_xywh`` is the presenter's box in it when known (the first frame's initialises the
+    second filter; the built-in studio gives it every frame as truth); ``floor_calibration``
+    maps its image to the floor; ``timestamp_s`` is the second camera's own time stamp (a
+    two-view source pairs frames by it); ``floor_xy_m_true`` is the presenter's true floor
+    position where a simulator knows it.
+    """
+
+    light: ClassVar[bool] = False
+    color_bgr: NDArray[np.uint8]
+    box_xywh: tuple[float, float, float, float] | None = None
+    floor_calibration: FloorCalibration | None = None
+    timestamp_s: float | None = None
+    floor_xy_m_true: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        readonly(self.color_bgr)

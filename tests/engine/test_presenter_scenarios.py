@@ -1,0 +1,44 @@
+"""The bench's studio scenarios measure what they claim (tiny versions of them)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from engine.bench import presenter_scenarios as sc
+from engine.frames import Frame
+from engine.trackers import create_tracker
+
+TINY = "synthetic:frames={n},presenter=1,path=static,width=160,height=120,"
+
+
+def _run(frames: list[Frame]) -> list[Any]:
+    t = create_tracker("presenter")
+    return [t.track(f) for f in frames]
+
+
+def test_desk_walk_two_view_and_robot_report_their_keys(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sc.DESK, "tiny", TINY + "presenter_mode=leave,presenter_x=0.4,"
+                        "presenter_out=-2.4,presenter_leave=5,presenter_return=110")
+    monkeypatch.setitem(sc.WALK, "tiny", TINY + "seed=2")
+    monkeypatch.setitem(sc.TWO_VIEW, "tiny", TINY + "views=2")
+    monkeypatch.setitem(sc.ROBOT, "tiny", "robot-sim:frames={n},width=160,height=120")
+    monkeypatch.setitem(sc.N_FRAMES, "desk", 170)
+    monkeypatch.setitem(sc.N_FRAMES, "walk", 30)
+    desk = sc.desk_loss(_run, "tiny")
+    assert desk["leave_frame"] is not None
+    assert desk["return_frame"] > desk["leave_frame"]
+    assert desk["frames_to_detect"] is not None
+    assert desk["frames_to_detect"] <= sc.DETECT_GOAL_FRAMES
+    walk = sc.walk_false_lost(_run, "tiny")
+    assert walk["frames_in_view"] == 30
+    assert walk["false_lost_frames"] == 0
+    tv = sc.two_view(_run, "tiny", n=12)
+    assert tv["frames_with_d"] > 0
+    assert set(tv["d_err_m"]) == {"median", "p95", "max"}
+    rb = sc.robot_loop(lambda: create_tracker("presenter"), "tiny", n=20)
+    assert set(rb["framing_err_px"]) == {"median", "p95"}
+    assert rb["frames"] == 20
+    assert sc.meets_loss_goals(desk, walk) == (desk["frames_to_reacquire"] is not None
+                                               and desk["frames_to_reacquire"] <= 15)

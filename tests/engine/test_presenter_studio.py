@@ -1,0 +1,155 @@
+"""The built-in studio around the presenter: other people and light, a second camera, a robot
+camera that obeys the tracker (small images, few frames)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.errors import SourceError
+from engine.floor import OverheadView
+from engine.geometry import make_T
+from engine.loop import run_tracking
+from engine.presenter.control import ControlCommand, RobotCameraCommand
+from engine.presenter.params import PresenterParams
+from engine.presenter.robot_sim import RobotCameraTruth, RobotSimSink
+from engine.results import TrackResult, TrackState
+from engine.sources import open_source
+from engine.studio.robot import RobotLimits, RobotRig
+from engine.studio.scene import LABEL_PERSON2
+from engine.studio.sim import StudioLabels, StudioTruth
+from engine.trackers import create_tracker
+
+SMALL = "width=160,height=120"
+
+
+def test_a_second_person_has_its_own_label_and_box() -> None:
+    src = open_source(f"synthetic:frames=40,{SMALL},presenter=1,path=static,person2=cross,"
+                      "person2_look=0")
+    seen = False
+    for i in (0, 10, 20, 30):
+        f = src.frame(i)
+        t = f.payload(StudioTruth)
+        labels = f.payload(StudioLabels).labels
+        assert t.person2_pixels == int(np.sum(labels == LABEL_PERSON2))
+        if t.person2_pixels:
+            seen = True
+            x, y, _, _ = t.person2_box_xywh
+            ys, xs = np.nonzero(labels == LABEL_PERSON2)
+            assert (xs.min(), ys.min()) == (x, y)
+    assert seen
+
+
+def test_looks_and_lighting_change_the_picture_not_the_geometry() -> None:
+    base = open_source(f"synthetic:frames=3,{SMALL},presenter=1,path=static").frame(1)
+    other = open_source(f"synthetic:frames=3,{SMALL},presenter=1,path=static,"
+                        "presenter_look=1,lighting=warm").frame(1)
+    assert base.payload(StudioTruth).presenter_pos_world == \
+        other.payload(StudioTruth).presenter_pos_world
+    lab = base.payload(StudioLabels).labels
+    torso = lab == 2
+    b0 = base.color_bgr[torso].mean(axis=0)
+    b1 = other.color_bgr[other.payload(StudioLabels).labels == 2].mean(axis=0)
+    assert b0[0] > b0[2]  # blue shirt
+    assert b1[2] > b1[0]  # red top
+    # warm light: red gain up, blue down on the unchanged set
+    set_px = (lab == 0) & (other.payload(StudioLabels).labels == 0)
+    ratio = other.color_bgr[set_px].mean(axis=0) / np.maximum(base.color_bgr[set_px].mean(0), 1)
+    assert ratio[2] > 1.05 > 0.95 > ratio[0]
+
+
+@pytest.mark.parametrize(("spec", "match"), [
+    ("synthetic:person2=cross", "needs presenter=1"),
+    ("synthetic:presenter=1,person2_look=2", "needs person2="),
+    ("synthetic:presenter=1,lighting=disco", "lighting"),
+    ("synthetic:views=3", "views"),
+    ("robot-sim:path=rail", "leave out path"),
+])
+def test_bad_studio_options_are_one_line_errors(spec: str, match: str) -> None:
+    with pytest.raises(SourceError, match=match):
+        open_source(spec)
+
+
+def test_second_view_comes_with_an_exact_floor_calibration() -> None:
+    src = open_source(f"synthetic:frames=3,{SMALL},presenter=1,path=static,views=2")
+    f = src.frame(0)
+    over = f.payload(OverheadView)
+    assert over is not None
+    assert over.color_bgr.shape == (120, 160, 3)
+    assert over.box_xywh is not None
+    X, Y, h = over.floor_calibration.locate(over.box_xywh)
+    tx, ty = over.floor_xy_m_true
+    assert np.hypot(X - tx, Y - ty) < 0.25  # at 160x120: a few pixels
+    assert 1.5 < h < 2.1
+
+
+def test_the_tracker_measures_d_from_the_second_view() -> None:
+    src = open_source("synthetic:frames=24,width=320,height=240,presenter=1,path=static,"
+                      "views=2,seed=3")
+    tracker = create_tracker("presenter")
+    errs = []
+    for f in src.frames():
+        r = tracker.track(f)
+        over = f.payload(OverheadView)
+        d = r.details
+        assert d.overhead_state is not None
+        if d.d_m is not None:
+            rx, ry = over.floor_calibration.robot_floor_xy_m
+            tx, ty = over.floor_xy_m_true
+            errs.append(abs(d.d_m - np.hypot(tx - rx, ty - ry)))
+    assert len(errs) >= 20
+    assert float(np.median(errs)) < 0.1
+
+
+def test_robot_rig_obeys_its_speed_and_acceleration_limits() -> None:
+    rig = RobotRig(make_T(np.eye(3), (0.0, 0.0, 1.5)),
+                   RobotLimits(max_speed_m_s=1.0, max_accel_m_s2=2.0))
+    rig.command_velocity(np.array([5.0, 0.0, 0.0]))
+    v = []
+    for _ in range(60):
+        rig.advance(1 / 30)
+        v.append(rig.v_world[0])
+    acc = np.diff(v) * 30
+    assert max(v) == pytest.approx(1.0)
+    assert acc.max() <= 2.0 + 1e-9
+    rig.command_velocity(np.array([np.nan, 0, 0]))  # ignored
+    rig.advance(1 / 30)
+    assert rig.v_world[0] == pytest.approx(1.0)
+    for _ in range(300):  # the working box stops the axis
+        rig.advance(1 / 30)
+    assert rig.p_world[0] == pytest.approx(rig.limits.box_max_m[0])
+    assert rig.v_world[0] == 0.0
+
+
+def test_robot_sim_sink_turns_image_velocity_into_camera_motion() -> None:
+    rig = RobotRig(make_T(np.eye(3), (0.0, 0.0, 1.5)))
+    sink = RobotSimSink(rig, f_px=300.0, depth_m=3.0)
+    msg = ControlCommand(seq=1, t_s=0.0, state="TRACKING", x_px=0, y_px=0, d_m=None,
+                         target_x_px=0, target_y_px=0, target_d_m=3.0, e_f_px=(0.0, 0.0),
+                         e_d_m=None, v_x_px_s=100.0, v_y_px_s=0.0, v_d_m_s=0.3)
+
+    class Rec:
+        result = TrackResult(state=TrackState.TRACKING, commands=(RobotCameraCommand(msg),))
+
+    sink.on_record(Rec())  # type: ignore[arg-type]
+    for _ in range(30):  # 1 s: long enough to reach the commanded speed
+        rig.advance(1 / 30)
+    assert rig.v_world[0] == pytest.approx(1.0)  # 100 px/s x 3 m / 300 px
+    assert rig.zoom > 1.0  # the presenter is farther than d*: zoom in
+
+
+def test_closed_loop_keeps_a_walking_presenter_framed() -> None:
+    spec = "robot-sim:frames=60,width=320,height=240,seed=3"
+    errs = {}
+    for name, params in (("closed", PresenterParams()),
+                         ("still", PresenterParams(control_gain=0.0, control_ki=0.0))):
+        src = open_source(spec)
+        tracker = create_tracker("presenter", params)
+        e = []
+        for rec in run_tracking(src, tracker):
+            t = rec.frame.payload(RobotCameraTruth)
+            if t.presenter_tv_px is not None:
+                W, H = t.tv_image_wh
+                e.append(np.hypot(t.presenter_tv_px[0] - W / 2, t.presenter_tv_px[1] - H / 2))
+        errs[name] = float(np.mean(e[-20:]))
+    assert errs["closed"] < 0.5 * errs["still"]
