@@ -50,6 +50,10 @@ STUDIO_SEQUENCES: tuple[Sequence, ...] = (
              "person2=cross,person2_look=0", studio=True,
              description="rail, grey jacket under a side key, a blue-shirt person crossing "
                          "in front"),
+    Sequence("studio_diagonal", _S + "seed=19,path=static,presenter_look=6,presenter_y=1.6,"
+             "presenter_dy=2.4,presenter_xmin=-0.6,presenter_xmax=1.6,width=480,height=360",
+             studio=True, description="static 480x360, purple top walking diagonally towards "
+                                      "and away from the camera (its size changes 2.5x)"),
     Sequence("studio_far", _S + "seed=17,path=static,presenter_look=5,lighting=cool,"
              "presenter_y=2.8,person2=behind,person2_look=6,width=320,height=240",
              studio=True, description="static 320x240, white shirt far from the camera, "

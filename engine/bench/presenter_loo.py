@@ -51,6 +51,8 @@ FINE: tuple[Knob, ...] = (
     Knob("loss_contrast", (0.4, 0.5, 0.7), start=0.5),
     Knob("velocity_gain", (0.25, 0.5, 0.75), start=0.5),
     Knob("fit_width", (True, False), start=True),
+    Knob("fit_width_max_frac", (1.6, 2.2), start=2.2),
+    Knob("mode_seek", (False, True), start=False),
 )
 
 

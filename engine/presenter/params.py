@@ -19,7 +19,7 @@ LOSS_TESTS = ("contrast", "likelihood")
 PAPER_PRESET = Preset(
     "the VR-TV paper's filter as published: random walk in x, y, h, fixed model, "
     "Pmin = 10 % of Pref",
-    velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, model_update_rate=0.0,
+    velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, mode_seek=False, model_update_rate=0.0,
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood",
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100)
 
@@ -49,6 +49,10 @@ class PresenterParams(Params):
                             "at least 2x as tall as wide: a stride or arm swing widens it; a "
                             "head or face box keeps its aspect); off = always the model's fixed "
                             "aspect ratio")
+    fit_width_max_frac: float = param(2.2, lo=1.0, hi=4.0, step=0.1,
+                                      help="widest fitted output box, in model widths (a "
+                                      "stride and swinging arms; a same-coloured neighbour "
+                                      "or set piece beside the presenter is cut off here)")
     grey_world: bool = param(True,
                              help="grey-world colour balance of each frame before the histograms "
                              "(for auto-white-balancing cameras)")
@@ -57,6 +61,10 @@ class PresenterParams(Params):
                                 "h (eq. 1); 0 keeps the size fixed (a presenter walking parallel "
                                 "to the set; HS histograms barely constrain scale, so a free h "
                                 "drifts and drags y with it)")
+    mode_seek: bool = param(True, help="output the mean of the particles' dominant mode "
+                            "(mean-shift from eq. 6's mean, kernel half a box wide) instead of "
+                            "eq. (6)'s mean of all: with a second person in view the mean lies "
+                            "between the two")
     ring_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
                                help="scale term beyond eq. (3): the colour likelihood is also "
                                "multiplied by exp(-this x BC_ring / lambda_col), BC_ring = the "

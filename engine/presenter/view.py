@@ -384,6 +384,10 @@ class ViewTracker:
             w = w * motion_likelihood(e, p.lambda_mot)  # eq. (4)-(5)
         self.weights = pf.normalise(w)  # eq. (5)
         mean = pf.weighted_mean(self.particles, self.weights)  # eq. (6)
+        if p.mode_seek and self.state == TRACKING:
+            h_m = float(mean[2])
+            mean = pf.mode_mean(self.particles, self.weights,
+                                (0.5 * h_m * self.model.aspect, 0.25 * h_m))
         # while searching the weights are many-peaked: test (and re-acquire at) the best one
         probe = mean if self.state == TRACKING else self.particles[int(np.argmax(w))]
         # P(z_col | s_t) at the estimate (inside the particles' region: same integral)
@@ -451,8 +455,12 @@ class ViewTracker:
                 self.weights = np.full(p.n_particles, 1.0 / p.n_particles)
 
         if self.state == TRACKING and self._below == 0:
-            if self._prev_mean is not None:
+            sure = not (p.loss_test == "contrast" and math.isfinite(z)
+                        and z > 0.5 * p.loss_contrast)
+            if self._prev_mean is not None and sure:
                 self._vel_xy = 0.5 * self._vel_xy + 0.5 * (mean[:2] - self._prev_mean[:2])
+            # unsure (the patches half-way to the background: an occlusion, another
+            # person): keep the last confident velocity instead of learning this motion
             self._prev_mean = mean.copy()
         else:
             self._vel_xy[:] = 0.0
@@ -495,7 +503,8 @@ class ViewTracker:
         rel = self._rel
         area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
         fg = (area / max(float(area.sum()), 1e-12)) @ ref
-        got = measure_extent(bgr, self._gains, mean, self.model.aspect, fg, self.model.n_bins)
+        got = measure_extent(bgr, self._gains, mean, self.model.aspect, fg, self.model.n_bins,
+                             w_max_frac=self.params.fit_width_max_frac)
         if got is None:
             return
         dx, w = got[0] - float(mean[0]), got[1]

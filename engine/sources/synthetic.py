@@ -23,6 +23,8 @@ presenter_x (0)        still/leave mode standing position along x, m
 presenter_out          leave mode: where the presenter waits out of view, m (x + 2.6; left
                        of the standing position = walks out to the left)
 presenter_y (2.4)      distance of the presenter's line from the rail (world y), m
+presenter_dy (0)       walk mode: the line goes from presenter_y (at xmin) to presenter_y + dy
+                       (at xmax): the presenter walks towards / away from the camera, m
 presenter_look (0)     who presents: 0..6 (engine.studio.presenter.LOOKS: clothes, skin, height)
 person2 (none)         a second person: cross (walks to and fro 0.8 m in front of the
                        presenter's line), behind (0.5 m behind it), beside (stands 0.7 m to
@@ -143,6 +145,7 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "presenter_out": _float(-4.6, 4.6),
     "presenter_y": _float(0.5, 4.2),
     "presenter_look": _int(0, 6),
+    "presenter_dy": _float(-3.5, 3.5),
     "person2": _choice(*PERSON2_MODES),
     "person2_look": _int(0, 6),
     "person2_speed": _float(0.0, 10.0, open_lo=True),
@@ -233,6 +236,7 @@ def config_from_options(opts: dict[str, str]) -> Any:
                 # appearing mid-sequence: walk in from the left wall rather than pop up
                 enter_from_m=-4.6 if start > 0 else None,
                 look=o.get("presenter_look", 0),
+                dy_m=o.get("presenter_dy", 0.0),
             )
         except ValueError as exc:
             raise SourceError(f"synthetic: presenter options: {exc}") from None

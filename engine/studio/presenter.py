@@ -9,8 +9,9 @@ trousers); a second person (``engine.studio.sim.StudioConfig.person2``) uses the
 and body with another look and one label for the whole body.
 
 Modes:
-- ``walk``: back and forth between ``x_min_m`` and ``x_max_m`` at ``speed_mps``; with
-  ``enter_from_m`` the presenter first walks in from there (off the set).
+- ``walk``: back and forth between ``x_min_m`` and ``x_max_m`` at ``speed_mps`` (with ``dy_m``
+  along a diagonal: ``y_m`` at ``x_min_m``, ``y_m + dy_m`` at ``x_max_m``, the apparent size
+  changing); with ``enter_from_m`` the presenter first walks in from there (off the set).
 - ``still``: standing exactly still at ``x_still_m`` facing the camera.
 - ``leave``: standing at ``x_still_m`` facing the camera; at ``leave_frame`` walks out to
   ``x_out_m`` (outside the camera's view; to the right, or to the left when ``x_out_m`` is
@@ -97,6 +98,7 @@ class PresenterScript:
     x_out_m: float = X_OUT_M
     enter_from_m: float | None = None  # walk mode: walk in from this x before the range
     look: int = 0  # index into LOOKS
+    dy_m: float = 0.0  # walk mode: depth change from x_min to x_max (towards/away from camera)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -128,13 +130,16 @@ class PresenterScript:
                 if x < self.x_min_m:
                     return PresenterState(x, self.y_m, 0.0, 2.0 * math.pi * s / STRIDE_M, True)
                 s -= self.x_min_m - self.enter_from_m
-            span = self.x_max_m - self.x_min_m
+            # along the line from (x_min, y) to (x_max, y + dy): dy 0 = parallel to the set
+            span = math.hypot(self.x_max_m - self.x_min_m, self.dy_m)
+            ux, uy = (self.x_max_m - self.x_min_m) / span, self.dy_m / span
             pos = s % (2.0 * span)
             if pos < span:
-                x, heading = self.x_min_m + pos, 0.0
+                a, heading = pos, math.atan2(uy, ux)
             else:
-                x, heading = self.x_max_m - (pos - span), math.pi
-            return PresenterState(x, self.y_m, heading, 2.0 * math.pi * s / STRIDE_M, True)
+                a, heading = span - (pos - span), math.atan2(-uy, -ux)
+            return PresenterState(self.x_min_m + a * ux, self.y_m + a * uy, heading,
+                                  2.0 * math.pi * s / STRIDE_M, True)
         # leave: stand, walk out (to x_out_m), wait, walk back, stand
         v = self.speed_mps / self.fps  # metres per frame
         sgn = 1.0 if self.x_out_m >= self.x_still_m else -1.0
