@@ -170,8 +170,8 @@ def camera_from_homography(H_floor_img: F64, image_wh: Sequence[int],
     return np.asarray(K @ np.hstack([R, t[:, None]]), dtype=np.float64)
 
 
-def calibrate_floor(image_pts_px: Sequence[Sequence[float]],
-                    floor_pts_m: Sequence[Sequence[float]],
+def calibrate_floor(image_pts_px: Sequence[Sequence[float]] | F64,
+                    floor_pts_m: Sequence[Sequence[float]] | F64,
                     robot_floor_xy_m: Sequence[float] = (0.0, 0.0),
                     image_wh: Sequence[int] | None = None,
                     f_px: float | None = None) -> FloorCalibration:

@@ -100,6 +100,14 @@ def make_tracker(name: str, particles: int = 100, **changes: Any) -> Any:
     return create_tracker(name)
 
 
+def _size(frame: Frame) -> tuple[int, int]:
+    """(height, width) of a frame's image."""
+    if frame.color_bgr is None:
+        raise ValueError(f"frame {frame.index} has no image")
+    h, w = frame.color_bgr.shape[:2]
+    return h, w
+
+
 def run_tracker(tracker: Any, frames: list[Frame]) -> tuple[list[Any], np.ndarray]:
     """Results and per-frame track() times (s) over preloaded frames."""
     results, times = [], []
@@ -258,11 +266,13 @@ def _det(r: Any) -> Any:
 
 
 def _filtered(r: Any) -> tuple[float, float, float]:
-    return tuple(_det(r).filtered_xyh)  # type: ignore[return-value]
+    v = _det(r).filtered_xyh
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _raw(r: Any) -> tuple[float, float, float]:
-    return tuple(_det(r).raw_xyh)  # type: ignore[return-value]
+    v = _det(r).raw_xyh
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def jitter_scenario(n: int, particles: int = 100) -> dict[str, Any]:
@@ -313,7 +323,7 @@ def _speed(args: argparse.Namespace) -> dict[str, Any]:
     frames = frames_of(spec)
     tracker = make_tracker("presenter_noloss", 100)
     res, times = run_tracker(tracker, frames)
-    h, w = frames[0].color_bgr.shape[:2]  # type: ignore[union-attr]
+    h, w = _size(frames[0])
     stages = {k: round(float(np.median([r.timings_ms.get(k, np.nan) for r in res[1:]])), 3)
               for k in ("motion_ms", "predict_ms", "likelihood_ms", "total_ms")}
     out = {"source": spec, "size": f"{w}x{h}", "particles": 100,

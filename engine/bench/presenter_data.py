@@ -91,14 +91,16 @@ def load(name: str, n_frames: int = 0) -> list[Frame]:
     if key in _CACHE:
         return _CACHE[key]
     if seq.studio:
-        from engine.sources import open_source
+        from engine.sources.base import parse_options
+        from engine.sources.synthetic import SyntheticSource
 
         n = n_frames or 300
         # render a few more so that n frames remain after the presenter comes into view
-        src = open_source(seq.spec.format(n=n + 60))
+        src = SyntheticSource.from_options(parse_options(
+            seq.spec.format(n=n + 60).partition(":")[2]))
         frames: list[Frame] = []
         for i in range(len(src)):
-            f = src.frame(i)  # type: ignore[attr-defined]
+            f = src.frame(i)
             if frames or _fully_in_view(f):
                 frames.append(f)
             if len(frames) >= n:
@@ -111,7 +113,8 @@ def load(name: str, n_frames: int = 0) -> list[Frame]:
                                     strict=False)]
     if not frames:
         raise RuntimeError(f"{name}: no frame with the target in view")
-    h, w = frames[0].color_bgr.shape[:2]  # type: ignore[union-attr]
+    img = frames[0].color_bgr
+    h, w = (0, 0) if img is None else img.shape[:2]
     log(f"{name}: {len(frames)} frames {w}x{h}")
     _CACHE[key] = frames
     return frames

@@ -327,8 +327,9 @@ def colour_residuals(integral: F32, cell: int, roi_xywh: tuple[int, int, int, in
                      image_wh: tuple[int, int], particles_xyh: F64, rel_boxes: F64,
                      aspect: float, sqrt_ref: F64, outside_b2: float = 1.0) -> F64:
     """sum_p B_p^2 for every particle (x, y, h): the exponent of eq. (3) times lambda_col."""
-    return patch_residuals(integral, cell, roi_xywh, image_wh, particles_xyh, rel_boxes,
-                           aspect, sqrt_ref, outside_b2).sum(axis=1)
+    return np.asarray(patch_residuals(integral, cell, roi_xywh, image_wh, particles_xyh,
+                                      rel_boxes, aspect, sqrt_ref, outside_b2).sum(axis=1),
+                      dtype=np.float64)
 
 
 @njit(cache=True, nogil=True)

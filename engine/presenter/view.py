@@ -229,8 +229,9 @@ class ViewTracker:
     def _fixed_residual(self, ctx: Any, states: F64) -> F64:
         """sum_p B_p^2 against the anchored model without background weighting (loss test)."""
         integral, cell, roi, wh = ctx
-        return patch_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
-                               self._sqrt_ref0).sum(axis=1)
+        return np.asarray(patch_residuals(integral, cell, roi, wh, states, self._rel,
+                                          self.model.aspect, self._sqrt_ref0).sum(axis=1),
+                          dtype=np.float64)
 
     def _background_levels(self, bgr: NDArray[np.uint8], xyh: F64) -> None:
         """beta: the BG_QUANTILE of sum_p B_p^2 over boxes of the target's size sampled over
@@ -241,7 +242,7 @@ class ViewTracker:
         w = h * self.model.aspect
         step = max(1, math.ceil(max(W, H) / 160))  # coarse: at most 160 px a side
         small = np.ascontiguousarray(bgr[::step, ::step])
-        hsv = cv2.cvtColor(apply_gains(small, self._gains), cv2.COLOR_BGR2HSV)
+        hsv = u8(cv2.cvtColor(apply_gains(small, self._gains), cv2.COLOR_BGR2HSV))
         cell = 2
         ctx = (binned_integral(hsv, self.model.n_bins, cell, pixel_weight=float(step * step)),
                cell, (0, 0, hsv.shape[1], hsv.shape[0]), (hsv.shape[1], hsv.shape[0]))

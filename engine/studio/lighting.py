@@ -66,4 +66,4 @@ LIGHTINGS: dict[str, Lighting] = {
 def apply_gain(bgr: NDArray[np.uint8], gain_bgr: NDArray[np.float32]) -> NDArray[np.uint8]:
     """Saturating per-channel gain of a uint8 BGR image."""
     out = bgr.astype(np.float32) * gain_bgr[None, None, :] + 0.5
-    return np.clip(out, 0, 255).astype(np.uint8)
+    return np.asarray(np.clip(out, 0, 255), dtype=np.uint8)

@@ -208,22 +208,22 @@ def body_prims(state: PresenterState, scene: StudioScene, look: Look | int = 0,
     ptype = np.empty(n, np.int32)
     geom = np.zeros((n, 9))
     mat = np.zeros((n, 6), np.int32)
-    label = np.empty(n, np.uint8)
+    labels = np.empty(n, np.uint8)
     corners = np.empty((n, 8, 3))
     for i, (a_, b_, r, mi, lab) in enumerate(caps):
         ptype[i] = CAP
         geom[i, :7] = (*a_, *b_, r)
         mat[i, 0] = mi
-        label[i] = lab
+        labels[i] = lab
         corners[i] = _aabb(np.minimum(a_, b_) - r, np.maximum(a_, b_) + r)
     for j, (c, r, mi, lab) in enumerate(sphs, start=len(caps)):
         ptype[j] = SPH
         geom[j, :4] = (*c, r)
         mat[j, 0] = mi
-        label[j] = lab
+        labels[j] = lab
         corners[j] = _aabb(c - r, c + r)
     keypoints = {"feet": base, "head": head_c, "pelvis": base + hip_z * up}
-    return Prims(ptype, geom, mat, label, corners), keypoints
+    return Prims(ptype, geom, mat, labels, corners), keypoints
 
 
 def _aabb(lo: F64, hi: F64) -> F64:

@@ -235,7 +235,7 @@ class Studio:
         truth: dict[str, Any] = {"path": cfg.path.kind, "cycle": t_s / cfg.path.period_s}
         keypoints: dict[str, F64] | None = None
         state = cfg.presenter.state(index) if cfg.presenter is not None else None
-        if state is not None:
+        if state is not None and cfg.presenter is not None:
             body, keypoints = body_prims(state, self.scene, cfg.presenter.look)
             parts.append(body)
         state2 = cfg.person2.state(index) if cfg.person2 is not None else None
