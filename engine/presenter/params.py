@@ -39,7 +39,7 @@ class PresenterParams(Params):
     sigma_min_px: float = param(3.0, lo=0.0, hi=100.0, step=0.5,
                                 help="lower bound of the x/y prediction noise std (px): small "
                                 "targets still move whole pixels")
-    velocity_gain: float = param(0.5, lo=0.0, hi=1.0, step=0.05,
+    velocity_gain: float = param(0.75, lo=0.0, hi=1.0, step=0.05,
                                  help="drift of the prediction: this fraction of the estimate's "
                                  "smoothed velocity is added to eq. (1)'s random walk (0 = the "
                                  "paper's pure random walk)")
@@ -56,16 +56,15 @@ class PresenterParams(Params):
     grey_world: bool = param(True,
                              help="grey-world colour balance of each frame before the histograms "
                              "(for auto-white-balancing cameras)")
-    sigma_h_frac: float = param(0.0, lo=0.0, hi=0.5, step=0.005,
+    sigma_h_frac: float = param(0.005, lo=0.0, hi=0.5, step=0.005,
                                 help="prediction noise std of the scale h per frame, fraction of "
-                                "h (eq. 1); 0 keeps the size fixed (a presenter walking parallel "
-                                "to the set; HS histograms barely constrain scale, so a free h "
-                                "drifts and drags y with it)")
-    mode_seek: bool = param(True, help="output the mean of the particles' dominant mode "
+                                "h (eq. 1; with the ring term, which keeps h from shrinking "
+                                "into the person); 0 keeps the size fixed")
+    mode_seek: bool = param(False, help="output the mean of the particles' dominant mode "
                             "(mean-shift from eq. 6's mean, kernel half a box wide) instead of "
                             "eq. (6)'s mean of all: with a second person in view the mean lies "
                             "between the two")
-    ring_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
+    ring_weight: float = param(0.5, lo=0.0, hi=10.0, step=0.1,
                                help="scale term beyond eq. (3): the colour likelihood is also "
                                "multiplied by exp(-this x BC_ring / lambda_col), BC_ring = the "
                                "Bhattacharyya coefficient of a ring around the box with the "
