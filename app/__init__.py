@@ -1,4 +1,4 @@
-"""StudioTrack application: Qt main window, engine-thread bridge, CLI and workflows."""
+"""StudioTrack application: Qt main window, run owner (engine thread), CLI and workflows."""
 
 from __future__ import annotations
 

@@ -1,10 +1,12 @@
-"""What every page gets: the engine bridge, the log, settings and the current project.
+"""What every page gets: the run owner, the log, settings and the current project.
 
-Pages are built by ``factory(ctx: AppContext)`` (see :mod:`app.pages`). They listen to
-``ctx.bridge`` signals (``started``, ``result_ready``, ``failed``, ``finished``) to show live
-data and call ``ctx.bridge.start/stop/set_params`` to control the engine; they report through
-``ctx.log`` (``ctx.log.info(...)``, ``.warning``, ``.error``), which feeds the log dock and,
-for warnings and errors, the main window's status bar.
+Pages are built by ``factory(ctx: AppContext)`` (see :mod:`app.pages`). ``ctx.run`` (an
+:class:`app.run_owner.RunOwner`) is the window's one camera pipeline: pages start, stop and
+tune runs through it (``ctx.run.start(RunRequest(...))``, ``stop()``, ``set_params``),
+read the newest record and the run's history at the display rate, and switch the pose
+outputs; its signals (``started``, ``failed``, ``finished``) say when a run changes. Pages
+report through ``ctx.log`` (``ctx.log.info(...)``, ``.warning``, ``.error``), which feeds
+the log dock and, for warnings and errors, the main window's status bar.
 
 QSettings holds only window geometry and recent files (STYLE.md); everything else is
 persisted as versioned JSON by the engine.
@@ -18,7 +20,7 @@ from typing import Any
 
 from PySide6.QtCore import QObject, QSettings, Signal
 
-from app.engine_bridge import EngineBridge
+from app.run_owner import RunOwner
 from widgets.log_panel import LogModel
 
 ORGANIZATION = "StudioTrack"
@@ -45,14 +47,16 @@ class AppContext(QObject):
 
     def __init__(
         self,
-        bridge: EngineBridge | None = None,
+        run: RunOwner | None = None,
         log: LogModel | None = None,
         settings: QSettings | None = None,
         parent: QObject | None = None,
     ) -> None:
         super().__init__(parent)
-        self.bridge = bridge if bridge is not None else EngineBridge(self)
         self.log = log if log is not None else LogModel(parent=self)
+        self.run = run if run is not None else RunOwner(self, log=self.log)
+        if self.run.log is None:
+            self.run.log = self.log
         self.settings = settings if settings is not None else default_settings()
         self._project: Any | None = None
 
@@ -81,5 +85,5 @@ class AppContext(QObject):
 
     def shutdown(self) -> None:
         """Stop the engine and flush settings (called when the main window closes)."""
-        self.bridge.stop()
+        self.run.stop()
         self.settings.sync()

@@ -12,7 +12,8 @@ from typing import Any
 
 from PySide6.QtCore import QObject, QThread, Signal
 
-from app.engine_bridge import _THREADS, one_line
+from app.run_owner import _THREADS
+from engine.pipeline import one_line
 
 
 class JobThread(QThread):

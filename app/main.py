@@ -162,9 +162,7 @@ def run_gui(
         outcome["done"] = True
         outcome["rc"] = rc
         # draw the latest record and take the picture while tracking still shows live
-        redraw = getattr(live, "redraw", None)
-        if callable(redraw):
-            redraw()
+        window.display_tick(force_header=True)
         if screenshot is not None:
             path = Path(screenshot)
             path.parent.mkdir(parents=True, exist_ok=True)
@@ -173,26 +171,30 @@ def run_gui(
                 outcome["rc"] = 1
             else:
                 print(f"screenshot saved to {path}", file=sys.stderr)
-        ctx.bridge.stop()
+        ctx.run.stop()
         window.close()
         app.quit()
 
     if quit_after is not None:
-        # the frame counter is checked on arrival; the screenshot waits for the next redraw
-        def on_record(_record: object) -> None:
-            if ctx.bridge.frames_received >= quit_after:
-                QTimer.singleShot(0, lambda: finish(0))
+        # the run's frame counter is polled (the engine never waits for the window)
+        def poll() -> None:
+            st = ctx.run.status()
+            if ctx.run.is_running and st is not None and st.frames >= quit_after:
+                finish(0)
 
         def on_failed(message: str) -> None:
             print(f"studiotrack: engine failed: {message}", file=sys.stderr)
             QTimer.singleShot(0, lambda: finish(1))
 
-        def on_finished() -> None:
+        def on_finished(_status: object) -> None:
             QTimer.singleShot(0, lambda: finish(outcome["rc"]))
 
-        ctx.bridge.result_ready.connect(on_record)
-        ctx.bridge.failed.connect(on_failed)
-        ctx.bridge.finished.connect(on_finished)
+        counter = QTimer(window)
+        counter.setInterval(20)
+        counter.timeout.connect(poll)
+        counter.start()
+        ctx.run.failed.connect(on_failed)
+        ctx.run.finished.connect(on_finished)
 
     if start:
         start_fn = getattr(live, "start", None)
@@ -207,5 +209,5 @@ def run_gui(
 
     app.exec()
     logging.getLogger().removeHandler(handler)
-    ctx.bridge.stop()
+    ctx.run.stop()
     return int(outcome["rc"])

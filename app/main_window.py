@@ -27,7 +27,13 @@ from PySide6.QtWidgets import (
 from app.context import AppContext
 from app.icons import page_icon
 from app.pages import PageSpec, discover_pages
+from app.pages._base import DISPLAY_HZ
+from app.status import header_state
 from widgets.log_panel import LogDock, LogEntry, LogLevel
+from widgets.status_header import StatusHeader
+
+#: the header is refreshed every this many display ticks (10 Hz at 30 Hz)
+HEADER_EVERY = 3
 
 DEFAULT_SIZE = (1600, 960)
 STATUS_STYLES = {
@@ -84,12 +90,19 @@ class MainWindow(QMainWindow):
         if self.nav.count():
             self.nav.setCurrentRow(0)
 
+        self.header = StatusHeader()
+        right = QWidget()
+        col = QVBoxLayout(right)
+        col.setContentsMargins(4, 4, 4, 0)
+        col.setSpacing(2)
+        col.addWidget(self.header)
+        col.addWidget(self.stack, 1)
         central = QWidget()
         row = QHBoxLayout(central)
         row.setContentsMargins(0, 0, 0, 0)
         row.setSpacing(0)
         row.addWidget(self.nav)
-        row.addWidget(self.stack, 1)
+        row.addWidget(right, 1)
         self.setCentralWidget(central)
 
         self.log_dock = LogDock(ctx.log, self)
@@ -100,15 +113,17 @@ class MainWindow(QMainWindow):
         from app.project_actions import install as install_project_actions
 
         self.project_actions = install_project_actions(self)  # File > New/Open/Save (issue 4)
-        # "starting" covers opening the source and the tracker's first frame, which can take
-        # seconds: the bridge only says "started" once frames flow
-        self._engine_poll = QTimer(self)
-        self._engine_poll.setInterval(250)
-        self._engine_poll.timeout.connect(self._poll_engine)
-        self._engine_poll.start()
-        ctx.bridge.started.connect(self._on_started)
-        ctx.bridge.failed.connect(self._on_failed)
-        ctx.bridge.finished.connect(self._on_finished)
+        # one display clock for the whole window: the header and the visible page draw on it
+        # (hidden pages cost nothing); the engine never waits for it
+        self.display_timer = QTimer(self)
+        self.display_timer.setInterval(round(1000 / DISPLAY_HZ))
+        self.display_timer.timeout.connect(self.display_tick)
+        self._ticks = 0
+        self.display_timer.start()
+        ctx.run.started.connect(self._on_started)
+        ctx.run.failed.connect(self._on_failed)
+        ctx.run.finished.connect(self._on_finished)
+        self.nav.currentRowChanged.connect(lambda _row: self.display_tick(force_header=True))
         self.geometry_restored = False
         if restore_geometry:
             self._restore_geometry()
@@ -139,6 +154,29 @@ class MainWindow(QMainWindow):
 
     def page(self, title: str) -> QWidget:
         return self.pages[title]
+
+    def current_page(self) -> QWidget | None:
+        scroll = self.stack.currentWidget()
+        return scroll.widget() if isinstance(scroll, QScrollArea) else None
+
+    @Slot()
+    def display_tick(self, force_header: bool = False) -> None:
+        """The display clock: engine events to the log, the header, the shown page."""
+        run = self.ctx.run
+        run.poll()
+        run.take_latest()  # the display takes the newest record; skipped ones count as drops
+        self._ticks += 1
+        if force_header or self._ticks % HEADER_EVERY == 0:
+            self.header.set_state(header_state(run))
+            if run.is_running and run.run_info is None:
+                self.engine_label.setText("Engine starting…")
+        page = self.current_page()
+        tick = getattr(page, "display_tick", None)
+        if callable(tick) and page is not None and page.isVisible():
+            try:
+                tick()
+            except Exception as exc:  # a page's drawing bug must not stop the clock
+                self.ctx.log.error(f"page drawing failed: {type(exc).__name__}: {exc}")
 
     def show_page(self, title: str) -> None:
         self.nav.setCurrentRow(list(self.pages).index(title))
@@ -173,26 +211,23 @@ class MainWindow(QMainWindow):
         if entry.level >= LogLevel.INFO:
             self.show_status(entry.message, entry.level)
 
-    @Slot()
-    def _on_started(self) -> None:
-        info = self.ctx.bridge.run_info
-        if info is not None:
-            self.engine_label.setText(f"Engine running · {info.tracker_name} · {info.source_name}")
-
-    @Slot()
-    def _poll_engine(self) -> None:
-        if self.ctx.bridge.is_running and self.engine_label.text() == "Engine idle":
-            self.engine_label.setText("Engine starting…")
-        elif not self.ctx.bridge.is_running and self.engine_label.text() == "Engine starting…":
-            self.engine_label.setText("Engine idle")
+    @Slot(object)
+    def _on_started(self, info: object) -> None:
+        run = self.ctx.run
+        name = getattr(info, "tracker_name", "")
+        src = getattr(info, "source_name", "")
+        self.engine_label.setText(f"Engine running · {name} · {src}")
+        self.header.set_state(header_state(run))
 
     @Slot(str)
     def _on_failed(self, message: str) -> None:
-        self.ctx.log.error(f"engine stopped: {message}", origin="engine")
+        self.show_status(message, LogLevel.ERROR)
+        self.header.set_state(header_state(self.ctx.run))
 
-    @Slot()
-    def _on_finished(self) -> None:
+    @Slot(object)
+    def _on_finished(self, _status: object) -> None:
         self.engine_label.setText("Engine idle")
+        self.header.set_state(header_state(self.ctx.run))
 
     # ----------------------------------------------------------- persistence
     def _restore_geometry(self) -> None:
@@ -209,6 +244,7 @@ class MainWindow(QMainWindow):
         if not self.project_actions.confirm_close():  # unsaved project: Save/Discard/Cancel
             event.ignore()
             return
+        self.display_timer.stop()
         for page in self.pages.values():  # pages with engine jobs or servers stop them
             stop = getattr(page, "shutdown", None)
             if callable(stop):

@@ -3,7 +3,9 @@
 Shows the keyframe point cloud (fused depth, coloured by the keyframe grey values),
 keyframe frustums (click -> ``on_keyframe_clicked(kf_id)``), annotated points and the live
 camera frustum. The live frustum follows a keyframe sweep being recorded and, once
-``follow(ctx.bridge)`` is called, the pose tracking on the Live page (:class:`LiveFollower`).
+``follow(ctx.run)`` is called, every pose run of the window: the run owner feeds it from a
+3D-view sink (:class:`engine.sinks.view_feed.ViewFeedSink`, its own thread, at most 20 Hz),
+so the browser never slows the engine or the window.
 viser is imported when the server starts (start-up stays fast); viser serves
 from its own thread and moves to the next port when the asked one is busy: read ``port``.
 Exports: the fused cloud (and an open3d TSDF mesh) as PLY.
@@ -20,7 +22,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from PySide6.QtCore import QObject, QTimer, Slot
 
 from engine.camera import Intrinsics, backproject_depth_image
 from engine.geometry import quat_xyzw_from_R
@@ -73,18 +74,14 @@ class StudioViewer:
         self._cloud: tuple[F64, NDArray[np.uint8]] | None = None
         self._store: Any | None = None
         self._live_intr: Intrinsics | None = None
-        self.follower: LiveFollower | None = None
+        self._owner: Any | None = None
+        self.drawn = 0  # live frusta moved (tests)
 
-    def follow(self, bridge: Any, rate_hz: float = 20.0) -> LiveFollower:
-        """Move the live frustum with ``bridge.result_ready`` records (Live page tracking).
-
-        Call from the GUI thread; drawing is throttled to ``rate_hz`` (display is separate
-        from arrival). ``stop()`` disconnects it.
-        """
-        if self.follower is not None:
-            self.follower.stop()
-        self.follower = LiveFollower(self, bridge, rate_hz)
-        return self.follower
+    def follow(self, owner: Any) -> None:
+        """Move the live frustum with every pose run of ``owner`` (an
+        :class:`app.run_owner.RunOwner`); ``stop()`` ends it."""
+        self._owner = owner
+        owner.set_view_publish(self.set_live_camera)
 
     @property
     def port(self) -> int:
@@ -197,6 +194,7 @@ class StudioViewer:
             intr = self._intr if self._intr is not None else self._live_intr
             if T_world_cam is None or intr is None:
                 return
+            self.drawn += 1
             h = self.nodes.get("/live_camera")
             if h is None:
                 self._put(
@@ -210,64 +208,10 @@ class StudioViewer:
                 h.position = tuple(float(v) for v in np.asarray(T_world_cam)[:3, 3])
 
     def stop(self) -> None:
-        if self.follower is not None:
-            self.follower.stop()
-            self.follower = None
+        if self._owner is not None:
+            self._owner.set_view_publish(None)
+            self._owner = None
         self.server.stop()
-
-
-class LiveFollower(QObject):
-    """Keeps a viewer's live frustum on the engine's latest pose (``result_ready`` records).
-
-    The slot only stores the latest record; a timer draws it, so a tracker running flat out
-    never floods the browser. Box and 2D trackers (no camera pose) are ignored.
-    """
-
-    def __init__(
-        self,
-        viewer: StudioViewer,
-        bridge: Any,
-        rate_hz: float = 20.0,
-        parent: QObject | None = None,
-    ) -> None:
-        super().__init__(parent)
-        self.viewer = viewer
-        self.bridge = bridge
-        self._latest: Any | None = None
-        self.drawn = 0  # frusta moved (tests)
-        self._timer = QTimer(self)
-        self._timer.setInterval(max(1, round(1000.0 / rate_hz)))
-        self._timer.timeout.connect(self.draw)
-        bridge.result_ready.connect(self._on_record)
-        self._timer.start()
-
-    @Slot(object)
-    def _on_record(self, record: Any) -> None:
-        self._latest = record
-
-    @Slot()
-    def draw(self) -> None:
-        record, self._latest = self._latest, None
-        if record is None or record.result.T_world_cam is None or not _is_pose(record):
-            return
-        self.viewer.set_live_camera(record.result.T_world_cam, record.frame.intrinsics)
-        self.drawn += 1
-
-    def stop(self) -> None:
-        self._timer.stop()
-        with contextlib.suppress(RuntimeError, TypeError):
-            self.bridge.result_ready.disconnect(self._on_record)
-
-
-def _is_pose(record: Any) -> bool:
-    """Whether the record's tracker outputs a camera pose (not a box or 2D position)."""
-    from engine.errors import TrackerError
-    from engine.trackers import get_spec
-
-    try:
-        return get_spec(record.tracker_name).output == "pose"
-    except TrackerError:  # a name outside the registry (a test fake): draw its pose
-        return True
 
 
 def export_cloud_ply(store: Any, path: str | Path, stride: int = 2) -> int:

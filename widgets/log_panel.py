@@ -68,26 +68,30 @@ class LogModel(QObject):
         self._entries: deque[LogEntry] = deque(maxlen=capacity)
         self._posted.connect(self._append, Qt.ConnectionType.QueuedConnection)
 
-    def add(self, level: LogLevel | int, message: str, origin: str = "app") -> LogEntry:
-        """Log one message (any thread). Returns the entry."""
-        entry = LogEntry(time.time(), LogLevel(_nearest_level(int(level))), message, origin)
+    def add(self, level: LogLevel | int, message: str, origin: str = "app",
+            time_s: float | None = None) -> LogEntry:
+        """Log one message (any thread); ``time_s`` (epoch seconds) when it happened, if not
+        now (engine events carry their own time). Returns the entry."""
+        entry = LogEntry(time.time() if time_s is None else float(time_s),
+                         LogLevel(_nearest_level(int(level))), message, origin)
         if self.thread() is QThread.currentThread():
             self._append(entry)
         else:
             self._posted.emit(entry)
         return entry
 
-    def debug(self, message: str, origin: str = "app") -> LogEntry:
-        return self.add(LogLevel.DEBUG, message, origin)
+    def debug(self, message: str, origin: str = "app", time_s: float | None = None) -> LogEntry:
+        return self.add(LogLevel.DEBUG, message, origin, time_s)
 
-    def info(self, message: str, origin: str = "app") -> LogEntry:
-        return self.add(LogLevel.INFO, message, origin)
+    def info(self, message: str, origin: str = "app", time_s: float | None = None) -> LogEntry:
+        return self.add(LogLevel.INFO, message, origin, time_s)
 
-    def warning(self, message: str, origin: str = "app") -> LogEntry:
-        return self.add(LogLevel.WARNING, message, origin)
+    def warning(self, message: str, origin: str = "app",
+                time_s: float | None = None) -> LogEntry:
+        return self.add(LogLevel.WARNING, message, origin, time_s)
 
-    def error(self, message: str, origin: str = "app") -> LogEntry:
-        return self.add(LogLevel.ERROR, message, origin)
+    def error(self, message: str, origin: str = "app", time_s: float | None = None) -> LogEntry:
+        return self.add(LogLevel.ERROR, message, origin, time_s)
 
     @Slot(object)
     def _append(self, entry: object) -> None:

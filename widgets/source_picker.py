@@ -4,7 +4,7 @@ RealSense recording -> a spec string.
 The spec strings are those of :func:`engine.sources.open_source`:
 ``synthetic:frames=600,seed=3,presenter=1,path=rail``, a TUM/OTB folder path, a video file path,
 ``camera:N``, ``realsense:serial=…``, a ``.bag`` path. The picker does not open anything; the
-engine thread does (errors come back through the bridge). Connected depth cameras are listed
+engine thread does (errors come back through the run owner). Connected depth cameras are listed
 (serial, model) when the "Depth camera" kind is chosen and on Refresh, not at start-up.
 """
 

@@ -3,12 +3,12 @@
 - Layout editor: the beacons are draggable targets on the map (the simulator's truth and the
   operator's layout that the tracker takes its quadrants/bearings from); add/remove, import
   and export as JSON or CSV.
-- Start/Stop runs ``beacons:...`` through ``beacon-slam`` on a private
-  :class:`app.engine_bridge.EngineBridge` (the shared bridge class: engine thread, typed
-  commands), so the Live page's run is left alone. Parameter edits (particle count, sigmas,
-  Map Adjustment p) are sent as ``SetParams`` and apply on the next step.
-- Live map: true vs estimated camera path, particle cloud, estimated beacons with 2-sigma
-  ellipses; error over time. Records are stored on arrival, a 30 Hz timer draws.
+- Start/Stop runs ``beacons:...`` through ``beacon-slam`` via the window's run owner
+  (``ctx.run``: outputs and the status header follow it). Parameter edits (particle count,
+  sigmas, Map Adjustment p) are sent as ``SetParams`` and apply on the next step.
+- Live map: true vs estimated camera path (every step, from the run's history), particle
+  cloud, estimated beacons with 2-sigma ellipses (of the step drawn); error over time. The
+  page draws on the window's display clock while shown.
 """
 
 from __future__ import annotations
@@ -21,9 +21,8 @@ from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QTimer, Slot
+from PySide6.QtCore import Slot
 from PySide6.QtWidgets import (
-    QApplication,
     QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
@@ -39,8 +38,8 @@ from PySide6.QtWidgets import (
 )
 
 from app.pages import PageSpec
+from app.pages._base import Page
 
-REDRAW_HZ = 30
 ELLIPSE_SIGMA = 2.0
 BEACON_COLOR = (255, 200, 60)
 EST_COLOR = (80, 200, 255)
@@ -58,24 +57,23 @@ def ellipse_points(mean: np.ndarray, cov: np.ndarray, n_sigma: float = ELLIPSE_S
     return mean[None, :] + n_sigma * (circle * vals[None, :]) @ vecs.T
 
 
-class BeaconsPage(QWidget):
+class BeaconsPage(Page):
     """Layout editor, simulator controls, live map and error plot for ``beacon-slam``."""
 
+    follows_trackers = ("beacon-slam",)
+
     def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        from app.engine_bridge import EngineBridge
+        super().__init__(ctx, parent)
         from engine.beacons.params import BeaconFilterParams
         from engine.beacons.simulator import PAPER_LAYOUT
         from widgets.param_form import ParamForm
 
         self.setObjectName("page_beacons")
-        self.ctx = ctx
-        self.bridge = EngineBridge(self)
+        self.run = ctx.run
         self._layout_dir = Path(tempfile.mkdtemp(prefix="studiotrack_beacons_"))
         self._targets: dict[str, pg.TargetItem] = {}
         self._pending: list[Any] = []
         self._latest: Any | None = None
-        self._dirty = False
         self.true_path: list[tuple[float, float]] = []
         self.est_path: list[tuple[float, float]] = []
         self.errors_m: list[float] = []
@@ -224,17 +222,11 @@ class BeaconsPage(QWidget):
         self.import_button.clicked.connect(self._import_dialog)
         self.export_button.clicked.connect(self._export_dialog)
         self.param_form.params_changed.connect(self._on_params)
-        self.bridge.result_ready.connect(self._on_record)
-        self.bridge.failed.connect(self._on_failed)
-        self.bridge.finished.connect(self._on_finished)
-        self.timer = QTimer(self)
-        self.timer.setInterval(int(1000 / REDRAW_HZ))
-        self.timer.timeout.connect(self._redraw)
-        self.timer.start()
-        app = QApplication.instance()
-        if app is not None:  # the main window's close only stops the shared bridge
-            app.aboutToQuit.connect(self.bridge.stop)
+        self.run.failed.connect(self._on_failed)
+        self.run.started.connect(lambda _i: self._update_buttons())
+        self.run.finished.connect(self._on_finished)
         self.set_layout(PAPER_LAYOUT)
+        self._update_buttons()
 
     @staticmethod
     def _dspin(lo: float, hi: float, value: float, step: float, suffix: str, tip: str
@@ -306,7 +298,7 @@ class BeaconsPage(QWidget):
         text = "   ".join(
             f"{k}\u00a0({x:.1f},\u00a0{y:.1f})" for k, (x, y) in self.beacon_layout().items()
         )
-        suffix = " — applies at the next Start" if self.bridge.is_running else ""
+        suffix = " — applies at the next Start" if self._running_here() else ""
         self.layout_label.setText(text + suffix)
 
     def import_layout(self, path: str | Path) -> None:
@@ -362,58 +354,76 @@ class BeaconsPage(QWidget):
             f"fps={self.fps_spin.value():g}"
         )
 
+    def _running_here(self) -> bool:
+        return self.run.is_running and self.follows(self.run.run_info)
+
+    def _update_buttons(self) -> None:
+        running = self.run.is_running
+        self.start_button.setEnabled(not running)
+        self.start_button.setToolTip("Simulate the layout and track it with beacon-slam"
+                                     if not running else "A run is active: stop it first")
+        self.stop_button.setEnabled(running)
+
     @Slot()
     def start(self) -> None:
+        if self.run.is_running:
+            self._report("a run is active: stop it first", error=True)
+            return
         self.true_path.clear()
         self.est_path.clear()
         self.errors_m.clear()
         self.records_seen = 0
         self._latest = None
         self.fit_view()
-        self.bridge.start(self.source_spec(), "beacon-slam", self.param_form.params,
-                          realtime=True)
-        self.start_button.setEnabled(False)
-        self.stop_button.setEnabled(True)
+        self.run.start(self.source_spec(), "beacon-slam", self.param_form.params,
+                       realtime=True, page="Beacons")
+        self._update_buttons()
         self.status_label.setText("Running…")
 
     @Slot()
     def stop(self) -> None:
-        self.bridge.stop()
+        self.run.stop()
 
     @Slot(object)
     def _on_params(self, params: Any) -> None:
-        if self.bridge.is_running:
-            self.bridge.set_params(params)  # SetParams: applies on the next step
+        if self._running_here():
+            self.run.set_params(params)  # SetParams: applies on the next step
 
-    @Slot(object)
-    def _on_record(self, rec: Any) -> None:
-        res = rec.result
-        if res.T_world_cam is None:
-            return
-        est = (float(res.T_world_cam[0, 3]), float(res.T_world_cam[1, 3]))
-        self.est_path.append(est)
+    def add_samples(self, samples: list[Any], missed: int) -> None:
         from engine.sources.beacons import BeaconTruth
 
-        truth = rec.frame.payload(BeaconTruth)
-        gt = truth.gt_xy if truth is not None else None
-        if gt is not None:
-            self.true_path.append(gt)
-            self.errors_m.append(math.hypot(est[0] - gt[0], est[1] - gt[1]))
-        self.records_seen += 1
-        self._latest = rec
-        self._dirty = True
+        for smp in samples:
+            if smp.T_world_cam is None:
+                continue
+            est = (float(smp.T_world_cam[0, 3]), float(smp.T_world_cam[1, 3]))
+            self.est_path.append(est)
+            truth = smp.payload(BeaconTruth)
+            gt = truth.gt_xy if truth is not None else None
+            if gt is not None:
+                self.true_path.append(gt)
+                self.errors_m.append(math.hypot(est[0] - gt[0], est[1] - gt[1]))
+            self.records_seen += 1
 
     @Slot(str)
     def _on_failed(self, msg: str) -> None:
-        self._report(f"beacon run failed: {msg}", error=True)
+        req = self.run.request
+        if req is not None and req.page == "Beacons":
+            self._report(f"beacon run failed: {msg}", error=True)
+        self._update_buttons()
 
-    @Slot()
-    def _on_finished(self) -> None:
-        self.start_button.setEnabled(True)
-        self.stop_button.setEnabled(False)
-        self._redraw()
-        if self.bridge.last_error is None:
-            self.status_label.setText(self._summary("Finished"))
+    @Slot(object)
+    def _on_finished(self, status: Any) -> None:
+        self.run_ended(status)
+
+    def run_ended(self, status: Any) -> None:
+        self._update_buttons()
+        if self._latest is not None or self.errors_m:
+            self._redraw_paths()
+            if self.run.last_error is None or self.run.stopped_by_user:
+                self.status_label.setText(self._summary("Finished" if not
+                                                         self.run.stopped_by_user else
+                                                         "Stopped"))
+        self._latest = None
         self._layout_changed()
 
     def _summary(self, prefix: str) -> str:
@@ -442,12 +452,11 @@ class BeaconsPage(QWidget):
         return text
 
     # ------------------------------------------------------------------ drawing
-    @Slot()
-    def _redraw(self) -> None:
-        if not self._dirty:
-            return
-        self._dirty = False
-        rec = self._latest
+    def draw(self, record: Any) -> None:
+        self._latest = record
+        self._redraw()
+
+    def _redraw_paths(self) -> None:
         if self.true_path:
             tp = np.asarray(self.true_path)
             self.true_item.setData(tp[:, 0], tp[:, 1])
@@ -457,6 +466,11 @@ class BeaconsPage(QWidget):
             self.cam_item.setData([ep[-1, 0]], [ep[-1, 1]])
         if self.errors_m:
             self.err_item.setData(np.arange(len(self.errors_m)), np.asarray(self.errors_m))
+
+    @Slot()
+    def _redraw(self) -> None:
+        self._redraw_paths()
+        rec = self._latest
         if rec is None:
             return
         from engine.trackers.beacon_slam import BeaconDetails
@@ -480,12 +494,8 @@ class BeaconsPage(QWidget):
                     item.setData(pts[:, 0], pts[:, 1])
                 else:
                     item.setData([], [])
-        if self.bridge.is_running:
+        if self._running_here():
             self.status_label.setText(self._summary(f"Running ({rec.result.state.value})"))
-
-    def closeEvent(self, event: Any) -> None:
-        self.bridge.stop()
-        super().closeEvent(event)
 
 
 def _factory(ctx: Any) -> QWidget:

@@ -3,9 +3,12 @@
 Record a sweep (incremental dense tracking adds keyframes, a live strip shows them), delete
 or retake keyframes, append a second sweep; fuse depth (Fig. 10) with progress and cancel;
 annotate points (the annotation editor) and run sparse bundle adjustment (Fig. 11) with
-Apply / Revert; open the 3D view (viser on 127.0.0.1) and export PLY. Long work runs on an
-engine thread (:class:`app.keyframe_jobs.JobThread`); the page keeps the latest results and
-the open project (``ctx.project``, an :class:`engine.project.Project`).
+Apply / Revert; open the 3D view (viser on 127.0.0.1) and export PLY. Recording a sweep is a
+run of the window's run owner (``ctx.run``: the status header, outputs and 3D view follow
+it) with the sweep recorder as one of its sinks; fusion and SBA run on a job thread
+(:class:`app.keyframe_jobs.JobThread`). Progress is drawn on the window's display clock
+while the page is shown. The page keeps the latest results and the open project
+(``ctx.project``, an :class:`engine.project.Project`).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from PySide6.QtWidgets import (
 
 from app.keyframe_jobs import JobThread
 from app.pages import PageSpec
+from app.pages._base import Page
 from engine.keyframes.fusion import FusionParams
 from engine.keyframes.sba import SBAParams
 from engine.keyframes.sweep import SweepParams
@@ -54,15 +58,16 @@ def _pixmap(gray: np.ndarray) -> QPixmap:
     return QPixmap.fromImage(QImage(g.data, w, h, w, QImage.Format.Format_Grayscale8).copy())
 
 
-class KeyframesPage(QWidget):
+class KeyframesPage(Page):
     """Record / fuse / annotate / bundle-adjust / view the keyframe model."""
 
     job_finished = Signal(str)  # "record" | "fuse" | "sba" (tests wait on it)
 
     def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.ctx = ctx
+        super().__init__(ctx, parent)
         self.job: JobThread | None = None
+        self.sweep: Any | None = None  # the SweepRecorder sink of the sweep being recorded
+        self._sweep_run = -1  # the run owner's epoch of that sweep
         self.job_kind = ""
         self.recording: Any | None = None  # last SweepRecording (frames kept for fusion)
         self.fusion: Any | None = None
@@ -233,11 +238,10 @@ class KeyframesPage(QWidget):
         lay = QVBoxLayout(self)
         lay.addWidget(split)
 
-        # drawing is separate from arrival: a timer shows the latest progress record
-        self._timer = QTimer(self)
-        self._timer.setInterval(33)
-        self._timer.timeout.connect(self._draw_progress)
+        # drawing is separate from arrival: the window's display clock draws the progress
         ctx.project_changed.connect(lambda _p: self.reload_project())
+        ctx.run.finished.connect(self._on_run_finished)
+        ctx.run.failed.connect(self._on_run_failed)
         self.reload_project()
         self._update_buttons()
 
@@ -354,13 +358,28 @@ class KeyframesPage(QWidget):
         self.job.failed.connect(self._on_failed)
         self.job.finished.connect(self._on_thread_finished)
         self.progress.setRange(0, 0)
-        self._timer.start()
         self._update_buttons()
         self.job.start()
 
     def stop_job(self) -> None:
-        if self.job is not None:
+        if self.sweep is not None and self._recording_now():
+            self.ctx.run.stop()
+        elif self.job is not None:
             self.job.requestInterruption()
+
+    def _recording_now(self) -> bool:
+        return self.sweep is not None and self.ctx.run.is_running \
+            and self.ctx.run.epoch == self._sweep_run
+
+    def refresh(self) -> None:
+        """The display clock: the sweep's newest keyframes and progress, a job's progress."""
+        if self.sweep is not None:
+            for k in self.sweep.take_new():
+                self._strip_item(k.id, k.T_world_cam, k.thumbnail, k.valid_depth_fraction)
+                self.strip.scrollToBottom()
+            if self.sweep.progress is not None:
+                self._pending_progress = self.sweep.progress
+        self._draw_progress()
 
     def shutdown(self) -> None:
         if self.job is not None:
@@ -370,10 +389,6 @@ class KeyframesPage(QWidget):
             self.viewer = None
 
     def _on_progress(self, rec: Any) -> None:
-        if self.job_kind == "record" and rec.new_keyframe is not None:
-            k = rec.new_keyframe
-            self._strip_item(k.id, k.T_world_cam, k.thumbnail, k.valid_depth_fraction)
-            self.strip.scrollToBottom()
         self._pending_progress = rec
 
     def _draw_progress(self) -> None:
@@ -443,7 +458,6 @@ class KeyframesPage(QWidget):
 
     def _on_thread_finished(self) -> None:
         kind = self.job_kind
-        self._timer.stop()
         self._draw_progress()
         if self.job is not None:
             self.job.deleteLater()
@@ -452,10 +466,13 @@ class KeyframesPage(QWidget):
         self.job_finished.emit(kind)
 
     def _update_buttons(self) -> None:
-        busy = self.job is not None
+        recording = self._recording_now()
+        busy = self.job is not None or recording
         has_store = self.store is not None
-        self.record_button.setEnabled(not busy)
-        self.stop_button.setEnabled(busy and self.job_kind == "record")
+        self.record_button.setEnabled(not busy and not self.ctx.run.is_running)
+        self.record_button.setToolTip("" if not self.ctx.run.is_running or recording else
+                                      "A run is active: stop it first")
+        self.stop_button.setEnabled(recording)
         self.cancel_button.setEnabled(busy and self.job_kind == "fuse")
         self.fuse_button.setEnabled(not busy and has_store and self.recording is not None)
         self.fuse_button.setToolTip(
@@ -470,23 +487,57 @@ class KeyframesPage(QWidget):
 
     # ------------------------------------------------------------- recording
     def start_recording(self) -> None:
-        from engine.keyframes.sweep import record_sweep
-        from engine.sources import open_source
+        """Record a sweep as a run of the window's run owner, the sweep recorder its sink."""
+        from engine.keyframes.sweep import SweepRecorder, sweep_tracker
 
+        if self.ctx.run.is_running or self.job is not None:
+            self.state_label.setText("A run is active: stop it first.")
+            return
         params = self.sweep_form.params
         spec = self.source.spec()
         base = self.store if (self.append_box.isChecked() and self.store is not None) else None
         if base is None:
             self.strip.clear()
         self.state_label.setText(f"Opening {spec} ...")
+        tracker = sweep_tracker(params, store=base)
+        self.sweep = SweepRecorder(tracker, params, store=base)
+        self.job_kind = "record"
+        self._pending_progress = None
+        self.progress.setRange(0, 0)
+        self.ctx.run.start(spec, "dense", tracker_factory=lambda: tracker, sinks=(self.sweep,),
+                           realtime=False, max_frames=params.max_frames or None,
+                           page="Keyframes")
+        self._sweep_run = self.ctx.run.epoch
+        self._update_buttons()
 
-        def job(should_stop: Any, progress: Any) -> Any:
-            with open_source(spec) as src:
-                return record_sweep(
-                    src, params, store=base, on_progress=progress, should_stop=should_stop
-                )
+    def _on_run_failed(self, message: str) -> None:
+        if self.sweep is not None and self.ctx.run.epoch == self._sweep_run:
+            self._on_failed(message)
 
-        self._start("record", job)
+    def _on_run_finished(self, status: Any) -> None:
+        self._update_buttons()
+        sweep = self.sweep
+        if sweep is None or self.ctx.run.epoch != self._sweep_run:
+            return
+        self.sweep = None
+        self.refresh()
+        from engine.errors import StudioTrackError
+
+        if status is None or (status.error and not self.ctx.run.stopped_by_user):
+            self.job_kind = "record"
+            self._on_failed(self.ctx.run.last_error or "the sweep run failed")
+        else:
+            try:
+                result = sweep.recording(status.info.source_name if status.info else "source",
+                                         stopped=self.ctx.run.stopped_by_user)
+            except StudioTrackError as exc:
+                self._on_failed(str(exc))
+            else:
+                self.job_kind = "record"
+                self._on_done(result)
+        self.progress.setRange(0, 1)
+        self._update_buttons()
+        self.job_finished.emit("record")
 
     # ---------------------------------------------------------------- fusion
     def start_fusion(self) -> None:
@@ -599,7 +650,7 @@ class KeyframesPage(QWidget):
 
         if self.viewer is None:
             self.viewer = StudioViewer(on_keyframe_clicked=self._on_frustum_clicked)
-            self.viewer.follow(self.ctx.bridge)  # live frustum follows the Live page too
+            self.viewer.follow(self.ctx.run)  # the live frustum follows every pose run
             self._update_viewer()
         self.view_label.setText(f"3D view at {self.viewer.url} (127.0.0.1 only)")
         if open_browser:

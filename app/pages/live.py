@@ -1,20 +1,23 @@
 """The Live page: pick a source and a tracker, start/stop, watch the image, poses and quality.
 
-Arrival and display are separate (STYLE.md): ``result_ready`` only stores the latest record
-and appends a few numbers to the plot buffers; a 30 Hz ``QTimer`` redraws the image, the
-overlays, the plots and the read-outs when something new arrived. The window therefore stays
-responsive however fast the engine runs.
+Runs go through the window's run owner (``ctx.run``): outputs, recording and the status
+header follow them. Arrival and display are separate (STYLE.md): the main window's display
+clock calls this page only while it is shown; the plots take every frame's numbers from the
+run's history, the image, overlay and read-outs are drawn from the newest record only, so
+the state and the numbers shown are always those of one and the same frame. Overlays are
+decimated to at most :data:`MAX_POINTS` points. After Stop every live read-out clears.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import statistics
+import time
 from collections import deque
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import Qt, QTimer, Slot
+from PySide6.QtCore import Qt, Slot
 from PySide6.QtGui import QKeySequence, QShortcut
 from PySide6.QtWidgets import (
     QCheckBox,
@@ -36,8 +39,10 @@ import engine.trackers as trackers
 from app.context import AppContext
 from app.icons import icon
 from app.pages import PageSpec
+from app.pages._base import Page
 from engine.loop import FrameRecord
-from engine.trackers.base import Overlay, TrackState
+from engine.pipeline import RunInfo, RunStatus, TraceSample
+from engine.trackers.base import Overlay
 from widgets.image_view import ImageView
 from widgets.param_form import ParamForm
 from widgets.pose_plots import PosePlots, ResidualPlots
@@ -45,7 +50,10 @@ from widgets.source_picker import SourceKind, SourcePicker
 from widgets.status_light import StatusLight
 
 DEFAULT_SOURCE = "synthetic:frames=100000,presenter=1,path=rail"
-REDRAW_HZ = 30
+#: at most this many overlay points are drawn (evenly strided; the count shown is the full one)
+MAX_POINTS = 1500
+#: the pose and quality plots are redrawn at most this often (s)
+PLOT_INTERVAL_S = 0.1
 
 
 def _readout(caption: str, tooltip: str) -> tuple[QLabel, QLabel]:
@@ -59,20 +67,30 @@ def _readout(caption: str, tooltip: str) -> tuple[QLabel, QLabel]:
     return cap, val
 
 
-class LivePage(QWidget):
+def decimated(overlay: Overlay | None, max_points: int = MAX_POINTS) -> Overlay | None:
+    """The overlay with at most ``max_points`` points (evenly strided), drawing bounded."""
+    if overlay is None or overlay.points_uv is None or len(overlay.points_uv) <= max_points:
+        return overlay
+    step = int(np.ceil(len(overlay.points_uv) / max_points))
+    w = overlay.point_weights
+    return dataclasses.replace(
+        overlay, points_uv=overlay.points_uv[::step],
+        point_weights=None if w is None or len(w) != len(overlay.points_uv) else w[::step])
+
+
+class LivePage(Page):
     """Source + tracker pickers, start/stop, live image, pose and residual plots, parameters."""
 
     def __init__(self, ctx: AppContext, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
+        super().__init__(ctx, parent)
         self.setObjectName("page_live")
-        self.ctx = ctx
-        self.bridge = ctx.bridge
+        self.run = ctx.run
         self._latest: FrameRecord | None = None
-        self._dirty = False
         self._latency_ms: deque[float] = deque(maxlen=120)
         self._params_by_tracker: dict[str, Any] = {}
         self._frames_shown = 0
-        self._lost_since: int | None = None  # frame index where the current loss began
+        self._plots_due = 0.0
+        self.samples_missed = 0  # frames pushed out of the run's history before drawn
 
         # ---- controls
         self.source_picker = SourcePicker()
@@ -218,25 +236,20 @@ class LivePage(QWidget):
         # ---- wiring
         self.start_button.clicked.connect(self.start)
         self.stop_button.clicked.connect(self.stop)
-        self.reset_button.clicked.connect(self.bridge.reset_tracker)
+        self.reset_button.clicked.connect(self.run.reset_tracker)
         self.tracker_box.currentIndexChanged.connect(self._on_tracker_changed)
         self.param_form.params_changed.connect(self._on_params_edited)
         self.param_form.edit_rejected.connect(
             lambda msg: ctx.log.warning(f"parameter rejected: {msg}")
         )
-        self.bridge.started.connect(self._on_started)
-        self.bridge.result_ready.connect(self._on_record)
-        self.bridge.failed.connect(self._on_failed)
-        self.bridge.finished.connect(self._on_finished)
-        self.bridge.params_changed.connect(self._on_params_sent)
+        self.run.started.connect(self._on_started)
+        self.run.failed.connect(self._on_failed)
+        self.run.finished.connect(self._on_finished)
+        self.run.params_changed.connect(self._on_params_sent)
         QShortcut(QKeySequence("F5"), self, self.start)
         QShortcut(QKeySequence("Shift+F5"), self, self.stop)
-
-        self.redraw_timer = QTimer(self)
-        self.redraw_timer.setInterval(int(1000 / REDRAW_HZ))
-        self.redraw_timer.timeout.connect(self.redraw)
-        self.redraw_timer.start()
         self._on_tracker_changed()
+        self._update_controls()
 
     @staticmethod
     def _titled(title: str, widget: QWidget) -> QWidget:
@@ -313,9 +326,9 @@ class LivePage(QWidget):
         name = self.tracker_name
         if name is not None:
             self._params_by_tracker[name] = params
-        info = self.bridge.run_info
-        if self.bridge.is_running and info is not None and info.tracker_name == name:
-            self.bridge.set_params(params)
+        info = self.run.run_info
+        if self.run.is_running and info is not None and info.tracker_name == name:
+            self.run.set_params(params)
             self.ctx.log.info(f"{name}: parameters applied from the next frame")
 
     # ---------------------------------------------------------------- control
@@ -329,44 +342,49 @@ class LivePage(QWidget):
         if self.source_picker.kind in (SourceKind.FOLDER, SourceKind.VIDEO) and spec:
             self.ctx.add_recent_file(spec)
             self.source_picker.set_recent(self.ctx.recent_files())
-        self.pose_plots.clear_data()
-        self.residual_plots.clear_data()
-        self._latency_ms.clear()
-        self._latest = None
-        self._frames_shown = 0
-        self._lost_since = None
-        self.error_label.setVisible(False)
+        self._clear_live()
         self.status_light.set_state(None, "STARTING")
-        self.ctx.log.info(f"starting {name} on {spec or '(no source)'}")
-        self.bridge.start(
-            spec, name, params=self.param_form.params, realtime=self.realtime_check.isChecked()
-        )
+        self.run.start(spec, name, self.param_form.params,
+                       realtime=self.realtime_check.isChecked(), page="Live")
         self._update_controls()
 
     @Slot()
     def stop(self) -> None:
-        if self.bridge.is_running:
-            self.bridge.stop()
-            self.ctx.log.info("tracking stopped")
+        if self.run.is_running:
+            self.run.stop()
         self._update_controls()
 
     def _update_controls(self) -> None:
-        running = self.bridge.is_running
+        running = self.run.is_running
         self.start_button.setEnabled(not running)
         self.stop_button.setEnabled(running)
         self.reset_button.setEnabled(running)
         self.tracker_box.setEnabled(not running)
         self.realtime_check.setEnabled(not running)
         self.source_picker.setEnabled(not running)
+        req = self.run.request
+        tip = "Stop tracking (Shift+F5)"
+        if running and req is not None and req.page != "Live":
+            tip = f"Stop the {req.tracker} run started on the {req.page} page (Shift+F5)"
+        self.stop_button.setToolTip(tip)
+        self.start_button.setToolTip("Start tracking (F5)" if not running else
+                                     "A run is active: stop it first")
 
-    # ---------------------------------------------------------- engine events
-    @Slot()
-    def _on_started(self) -> None:
-        info = self.bridge.run_info
-        if info is not None:
-            self.ctx.log.info(f"tracking {info.source_name} with {info.tracker_name}")
-            self.status_light.set_state(None, "INITIALIZING")
-            self._show_run_params(info.tracker_name, info.params)
+    def _clear_live(self) -> None:
+        """Forget everything shown of a run (a new run starts, or the run ended)."""
+        self._latest = None
+        self._latency_ms.clear()
+        self._frames_shown = 0
+        self.error_label.setVisible(False)
+        for v in self.readouts.values():
+            v.setText("–")
+
+    # ---------------------------------------------------------- run events
+    @Slot(object)
+    def _on_started(self, info: object) -> None:
+        assert isinstance(info, RunInfo)
+        self.status_light.set_state(None, "INITIALIZING")
+        self._show_run_params(info.tracker_name, info.params)
         self._update_controls()
 
     def _show_run_params(self, tracker_name: str, params: object) -> None:
@@ -387,57 +405,68 @@ class LivePage(QWidget):
 
     @Slot(object)
     def _on_params_sent(self, params: object) -> None:
-        info = self.bridge.run_info
+        info = self.run.run_info
         if info is not None and params is not self.param_form.params:
             self._show_run_params(info.tracker_name, params)
-
-    @Slot(object)
-    def _on_record(self, record: object) -> None:
-        assert isinstance(record, FrameRecord)
-        self._latest = record
-        self._dirty = True
-        self._latency_ms.append(record.process_ms)
-        frame, result = record.frame, record.result
-        self._log_loss_and_recovery(record)
-        err = self.pose_plots.append(frame.timestamp_s, result.T_world_cam, frame.gt_T_world_cam)
-        self.residual_plots.append(frame.timestamp_s, result.residual, result.inlier_fraction, err)
-
-    def _log_loss_and_recovery(self, record: FrameRecord) -> None:
-        """One log line when tracking is lost and one when it is good again (no flood)."""
-        state, index = record.result.state, record.frame.index
-        if state is TrackState.LOST and self._lost_since is None:
-            self._lost_since = index
-            self.ctx.log.warning(f"tracking LOST at frame {index}", origin="tracker")
-        elif state.is_good and self._lost_since is not None:
-            frames = index - self._lost_since
-            self.ctx.log.info(
-                f"tracking recovered at frame {index} after {frames} frames", origin="tracker"
-            )
-            self._lost_since = None
 
     @Slot(str)
     def _on_failed(self, message: str) -> None:
         self.error_label.setText(message)
         self.error_label.setToolTip(message)
         self.error_label.setVisible(True)
-
-    @Slot()
-    def _on_finished(self) -> None:
-        self.redraw()
-        error = self.bridge.last_error
-        self.status_light.set_state(None, "ERROR" if error else "STOPPED")
-        if error is None:
-            self.ctx.log.info(f"run ended after {self.bridge.frames_received} frames")
+        self.status_light.set_state(None, "ERROR")
         self._update_controls()
 
-    # ---------------------------------------------------------------- display
-    @Slot()
-    def redraw(self) -> None:
-        """Draw the latest record (called by the display timer; cheap when nothing new)."""
-        record = self._latest
-        if not self._dirty or record is None:
-            return
-        self._dirty = False
+    @Slot(object)
+    def _on_finished(self, status: object) -> None:
+        self.run_ended(status if isinstance(status, RunStatus) else None)
+
+    # ------------------------------------------------------------- page hooks
+    def run_changed(self, info: RunInfo | None) -> None:
+        self.samples_missed = 0
+        self.pose_plots.clear_data()
+        self.residual_plots.clear_data()
+        self.pose_plots.redraw()
+        self.residual_plots.redraw()
+        self._clear_live()
+        self._update_controls()
+
+    def run_ended(self, status: RunStatus | None) -> None:
+        """Nothing stale after Stop: read-outs clear, the overlay goes, the light says so."""
+        error = self.run.last_error
+        fault = status is not None and bool(status.error)
+        if error and not self.run.stopped_by_user and not fault:
+            self.status_light.set_state(None, "ERROR")
+        else:
+            self.status_light.set_state(None, "STOPPED")
+        shown = self._frames_shown
+        self._clear_live()
+        if error and not self.run.stopped_by_user:
+            self.error_label.setText(error)
+            self.error_label.setVisible(True)
+        self.image_view.set_overlay(None, None)
+        frames = status.frames if status is not None else 0
+        self.image_view.set_info(f"stopped after {frames} frames ({shown} drawn)")
+        self._update_controls()
+
+    def follows(self, info: RunInfo | None) -> bool:
+        return info is not None  # the Live page shows every run
+
+    def add_samples(self, samples: list[TraceSample], missed: int) -> None:
+        self.samples_missed += missed
+        for s in samples:
+            err = self.pose_plots.append(s.timestamp_s, s.T_world_cam, s.gt_T_world_cam)
+            self.residual_plots.append(s.timestamp_s, s.residual, s.inlier_fraction, err)
+            self._latency_ms.append(s.process_ms)
+        now = time.monotonic()
+        if now >= self._plots_due:
+            self._plots_due = now + PLOT_INTERVAL_S
+            self.pose_plots.redraw()
+            self.residual_plots.redraw()
+
+    def draw(self, record: FrameRecord) -> None:
+        """Draw the newest record: image, its own overlay, its own state and numbers."""
+        self._latest = record
         self._frames_shown += 1
         frame, result = record.frame, record.result
         self.image_view.set_image(frame.color_bgr)
@@ -452,13 +481,17 @@ class LivePage(QWidget):
                 polylines_uv=base.polylines_uv,
                 crosshair_uv=base.crosshair_uv,
             )
-        self.image_view.set_overlay(overlay, frame.gt_box_xywh)
+        self.image_view.set_overlay(decimated(overlay), frame.gt_box_xywh)
         self.image_view.set_info(self._info_text(record))
+        self.status_light.set_state(result.state)
+        self._update_readouts(record)
+
+    @Slot()
+    def redraw(self) -> None:
+        """Draw now (tests, screenshots): what the display clock would draw."""
+        self.display_tick()
         self.pose_plots.redraw()
         self.residual_plots.redraw()
-        if self.bridge.is_running or record.result.state is not None:
-            self.status_light.set_state(result.state)
-        self._update_readouts(record)
 
     def _info_text(self, record: FrameRecord) -> str:
         frame, result = record.frame, record.result
@@ -471,11 +504,15 @@ class LivePage(QWidget):
                 parts.append(f"{n} points, {used:.0f} % used")
             else:
                 parts.append(f"{n} points")
+        if result.message:
+            parts.append(result.message)
         return "  ·  ".join(parts)
 
     def _update_readouts(self, record: FrameRecord) -> None:
         result = record.result
-        self.readouts["fps"].setText(f"{record.fps:6.1f}")
+        st = self.run.status()
+        fps = st.fps if st is not None else record.fps
+        self.readouts["fps"].setText(f"{fps:6.1f}")
         lat = list(self._latency_ms)
         p95 = float(np.percentile(lat, 95)) if len(lat) >= 2 else record.process_ms
         self.readouts["latency"].setText(f"{record.process_ms:6.1f} / {p95:.1f}")

@@ -1,10 +1,11 @@
 """The Operations page: is the show healthy? Everything live, refreshed twice a second.
 
-Tracker frames/s, processing latency p50/p95 (last 600 frames), tracking state, status and
+Tracker frames/s against the target, tracker time p50/p95 and end-to-end latency
+(capture -> packet on the wire), tracking state, frames dropped by the display, status and
 output rate per target with its bind address and last send error (configured targets show
-"off" while outputs are off; the output-rate curve is hidden then), dropped samples, and the
-process's CPU and memory (psutil). Data arrival (``result_ready``) only appends numbers; a
-QTimer redraws.
+"off" while outputs are off; the output-rate curve is hidden then), held/LOST output slots,
+and the process's CPU and memory (psutil). Everything is read from the run owner's status
+on the window's display clock while the page is shown; after Stop the engine numbers clear.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QGridLayout,
@@ -26,11 +27,11 @@ from PySide6.QtWidgets import (
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
-    QWidget,
 )
 
 from app.pages import PageSpec
-from app.pages._outputs_state import controller
+from app.pages._base import Page
+from app.status import header_state
 
 REFRESH_MS = 500
 HISTORY = 240  # samples of the rate/memory plots (2 minutes at 2 Hz)
@@ -44,15 +45,16 @@ OK_COLOR = "#4caf50"
 MUTED_COLOR = "#9aa0a6"
 
 
-class OperationsPage(QWidget):
+class OperationsPage(Page):
     """Live health read-outs for the operator."""
 
+    refresh_interval_s = REFRESH_MS / 1000.0
+
     def __init__(self, ctx: Any) -> None:
-        super().__init__()
+        super().__init__(ctx)
         import psutil
 
-        self.ctx = ctx
-        self.ctrl = controller(ctx)
+        self.run = ctx.run
         self._proc = psutil.Process()
         self._proc.cpu_percent(None)  # first call primes the counter
         self._cpu_t = time.monotonic()
@@ -64,11 +66,13 @@ class OperationsPage(QWidget):
         g.setVerticalSpacing(2)
         g.setHorizontalSpacing(18)
         items = [
-            ("state", "Tracking state", "state of the last tracked frame"),
-            ("fps", "Tracker frames/s", "engine loop rate (EMA)"),
-            ("p50", "Latency p50", "median processing time per frame, last 600 frames"),
-            ("p95", "Latency p95", "95th percentile processing time, last 600 frames"),
-            ("frames", "Frames this run", "frames tracked since the run started"),
+            ("state", "Tracking state", "what the status header says"),
+            ("fps", "Tracker frames/s", "frames over the last second / the source's rate"),
+            ("p50", "Tracker p50 / p95", "tracker time per frame, last 600 frames"),
+            ("p95", "Capture→wire p95", "capture -> packet on the wire (outputs on), else "
+             "capture -> tracker done; p95 / max of the last 600"),
+            ("frames", "Frames this run", "frames tracked since the run started; dropped: "
+             "records the display skipped (the engine never waits for it)"),
             ("cpu", "CPU (process)", "StudioTrack process CPU, % of one core"),
             ("rss", "Memory (RSS)", "resident memory of the process"),
             ("threads", "Threads", "threads in the process"),
@@ -145,23 +149,29 @@ class OperationsPage(QWidget):
         layout.addWidget(self.plot, 1)
         layout.addWidget(out)
 
-        self.timer = QTimer(self)
-        self.timer.setInterval(REFRESH_MS)
-        self.timer.timeout.connect(self.refresh)
-        self.timer.start()
         self.refresh()
 
     def refresh(self) -> None:
-        c = self.ctrl
-        running = bool(getattr(self.ctx.bridge, "is_running", False))
+        run = self.run
+        running = run.is_running
         v = self.values
-        v["state"].setText(c.last_state)
-        v["fps"].setText(f"{c.fps:.1f}" if c.frames else "–")
-        if c.process_ms:
-            a = np.fromiter(c.process_ms, dtype=np.float64)
-            v["p50"].setText(f"{np.percentile(a, 50):.1f} ms")
-            v["p95"].setText(f"{np.percentile(a, 95):.1f} ms")
-        v["frames"].setText(str(c.frames))
+        st = run.status() if running else None
+        v["state"].setText(header_state(run).state)
+        fps = st.fps if st is not None else 0.0
+        if st is not None and st.frames:
+            v["fps"].setText(f"{st.fps:.1f}" + (f" / {st.target_fps:.2f}" if st.target_fps
+                                                 else ""))
+            tm = st.tracker_ms
+            v["p50"].setText("–" if tm is None else f"{tm.p50_ms:.1f} / {tm.p95_ms:.1f} ms")
+            out = run.output_health()
+            lat = out.latency if out is not None and out.latency is not None else \
+                st.capture_to_done
+            v["p95"].setText("–" if lat is None else f"{lat.p95_ms:.1f} / {lat.max_ms:.0f} ms")
+            v["frames"].setText(f"{st.frames} (dropped {st.display_dropped})")
+        else:  # nothing stale after Stop
+            for key in ("fps", "p50", "p95"):
+                v[key].setText("–")
+            v["frames"].setText("–")
         try:
             now = time.monotonic()
             if now - self._cpu_t >= 0.25:  # a shorter interval would read ~0 %
@@ -172,24 +182,32 @@ class OperationsPage(QWidget):
             v["threads"].setText(str(self._proc.num_threads()))
         except Exception as exc:  # psutil on an exotic platform: show, never crash
             v["cpu"].setText(type(exc).__name__)
-        st = c.stats()
+        st_out = run.output_stats() if running and run.outputs_enabled else None
         rate = float("nan")
-        if st is None:
+        cfg = run.outputs_config
+        if st_out is None and run.outputs_enabled:
+            self.sender_label.setText("Outputs armed — they send while a run is active. "
+                                      "Configured targets:")
+            rows = [(t.name, t.effective_bind, "armed (no run)", "–", "–", "–", "–", "")
+                    for t in cfg.targets]
+        elif st_out is None:
             self.sender_label.setText("Outputs off — nothing is sent (switch them on on the "
                                       "Outputs page). Configured targets:")
             # not bound to anything while off: say what it would bind to
             rows = [(t.name, f"{t.effective_bind} (when on)", "off", "–", "–", "–", "–", "")
-                    for t in c.config.targets]
+                    for t in cfg.targets]
         else:
+            st = st_out
             self.sender_label.setText(
-                f"Samples submitted {st.submitted}, dropped (queue full) {st.dropped}, "
-                f"skipped (no pose yet) {st.skipped_no_pose}, encode errors {st.encode_errors}; "
-                f"queue→sent latency p50 {st.latency_p50_ms:.2f} ms, "
-                f"p95 {st.latency_p95_ms:.2f} ms"
+                (f"Clocked at {st.rate_hz:.3f} Hz: {st.ticks} slots, {st.held_ticks} held, "
+                 f"{st.lost_ticks} flagged LOST, {st.missed_ticks} missed; "
+                 if st.clocked else f"Per record: {st.ticks} samples; ")
+                + f"dropped (queue full) {st.dropped}, skipped (no pose yet) "
+                f"{st.skipped_no_pose}, encode errors {st.encode_errors}"
                 + (f" – {st.last_encode_error}" if st.last_encode_error else ""))
             rows = []
             for t in st.targets:
-                if t.errors and t.rate_hz < 0.5:
+                if t.failing:
                     status = "error"
                 elif t.rate_hz >= 0.5:
                     status = f"sending {t.rate_hz:.0f} Hz"
@@ -200,14 +218,14 @@ class OperationsPage(QWidget):
             rate = max((t.rate_hz for t in st.targets), default=0.0)
         self.sender_label.setToolTip(self.sender_label.text())
         self._fill_table(rows)
-        self.fps_hist.append(c.fps if running else 0.0)
+        self.fps_hist.append(fps if running else 0.0)
         self.rate_hist.append(rate)
         x = -np.arange(len(self.fps_hist))[::-1] * REFRESH_MS / 1000.0
         fps = np.fromiter(self.fps_hist, dtype=np.float64)
         rates = np.fromiter(self.rate_hist, dtype=np.float64)
         self.fps_curve.setData(x, fps)
         # Outputs off: no flat zero line -- the rate curve is hidden and the plot says "off".
-        self._show_rate(st is not None)
+        self._show_rate(st_out is not None)
         self.rate_curve.setData(x, rates, connect="finite")
         top = np.nanmax(np.concatenate([fps, rates, [0.0]]))
         self.plot.setYRange(0.0, max(10.0, float(top) * 1.15), padding=0)

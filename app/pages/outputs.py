@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import fields, replace
 from typing import Any
 
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
     QAbstractSpinBox,
     QCheckBox,
@@ -34,14 +34,17 @@ from PySide6.QtWidgets import (
 )
 
 from app.pages import PageSpec
-from app.pages._outputs_state import controller
+from app.pages._base import Page
 from engine.errors import StudioTrackError
 from engine.outputs import opentrackio as ot
+from engine.outputs.clock import parse_rate, rate_name
 from engine.outputs.sender import OutputConfig, TargetSpec
 from engine.outputs.studio_frame import StudioFrame
 from widgets.param_form import ParamForm
 
 STATUS_MS = 500
+#: the output rates the operator can pick ("source": the source's frame rate)
+RATE_CHOICES = ("source", "23.976", "24", "25", "29.97", "30", "50", "59.94", "60")
 FIELD_W = 110  # numeric editors keep a compact, fixed width
 HOST_W = 130
 POINT_W = 96
@@ -94,14 +97,15 @@ def _loopback_host(host: str) -> bool:
     return host == "localhost" or host.startswith("127.")
 
 
-class OutputsPage(QWidget):
+class OutputsPage(Page):
     """Target, lens, delay and studio-frame settings for the pose outputs."""
 
+    refresh_interval_s = STATUS_MS / 1000.0
+
     def __init__(self, ctx: Any) -> None:
-        super().__init__()
-        self.ctx = ctx
-        self.ctrl = controller(ctx)
-        cfg = self.ctrl.config
+        super().__init__(ctx)
+        self.run = ctx.run
+        cfg = self.run.outputs_config
 
         # -- header: send switch, apply model -------------------------------------------
         self.send_box = QCheckBox("Send poses")
@@ -109,7 +113,7 @@ class OutputsPage(QWidget):
         self.send_box.setToolTip("Takes effect immediately. Turning it on applies pending "
                                  "changes first.")
         self.send_box.setStyleSheet("font-weight: bold")
-        self.send_box.setChecked(self.ctrl.enabled)
+        self.send_box.setChecked(self.run.outputs_enabled)
         self.send_box.toggled.connect(self._on_send_toggled)
         self.send_state = QLabel()
         self.send_state.setObjectName("outputs_send_state")
@@ -214,6 +218,13 @@ class OutputsPage(QWidget):
         self.sensor_w.setSuffix(" mm")
         self.sensor_w.setFixedWidth(FIELD_W)
         self.sensor_w.setToolTip("Sensor width: converts focal length px -> mm (both outputs)")
+        self.rate_box = QComboBox()
+        self.rate_box.setObjectName("outputs_rate")
+        self.rate_box.addItems(list(RATE_CHOICES))
+        self.rate_box.setFixedWidth(FIELD_W)
+        self.rate_box.setToolTip("Packets leave at this video rate from the output clock "
+                                 "(Hz), whatever the tracker's rate; 'source': the source's "
+                                 "frame rate")
         lg = QGroupBox("Camera id and lens mapping")
         lv = QHBoxLayout(lg)
         fw = QWidget()
@@ -228,6 +239,7 @@ class OutputsPage(QWidget):
         olay.addRow("source number", self.otio_source)
         olay.addRow(QLabel("<b>Both</b>"))
         olay.addRow("sensor width", self.sensor_w)
+        olay.addRow("output rate", self.rate_box)
         lv.addWidget(fw, 0, Qt.AlignmentFlag.AlignTop)
         lv.addSpacing(12)
         lv.addWidget(ow, 0, Qt.AlignmentFlag.AlignTop)
@@ -299,6 +311,7 @@ class OutputsPage(QWidget):
         for s in (self.freed_port, self.otio_port, self.otio_source):
             s.valueChanged.connect(self._update_pending)
         self.sensor_w.valueChanged.connect(self._update_pending)
+        self.rate_box.currentTextChanged.connect(self._update_pending)
         for row in self.points:
             for s in row:
                 s.valueChanged.connect(self._update_pending)
@@ -306,12 +319,7 @@ class OutputsPage(QWidget):
         for f in (self.freed_form, self.delay_form):
             f.params_changed.connect(self._update_pending)
             f.edit_rejected.connect(self._update_pending)
-        self.ctrl.enabled_changed.connect(self._on_enabled_changed)
-        self.ctrl.config_changed.connect(self._on_config_changed)
-        self.timer = QTimer(self)
-        self.timer.setInterval(STATUS_MS)
-        self.timer.timeout.connect(self.refresh_status)
-        self.timer.start()
+        self.run.outputs_changed.connect(self._on_outputs_changed)
         self._update_pending()
         self.refresh_status()
 
@@ -337,6 +345,7 @@ class OutputsPage(QWidget):
             self.otio_host.setText("127.0.0.1")
         self.otio_source.setValue(cfg.opentrackio_source_number)
         self.sensor_w.setValue(cfg.lens.sensor_width_mm)
+        self.rate_box.setCurrentText("source" if cfg.rate_hz is None else rate_name(cfg.rate_hz))
         self.freed_form.set_params(cfg.freed)
         self.delay_form.set_params(cfg.delays)
         if cfg.studio == StudioFrame():
@@ -351,7 +360,7 @@ class OutputsPage(QWidget):
         if self.freed_form.errors or self.delay_form.errors:
             return True
         try:
-            return self.build_config() != self.ctrl.config
+            return self.build_config() != self.run.outputs_config
         except StudioTrackError:
             return True
 
@@ -368,7 +377,7 @@ class OutputsPage(QWidget):
         try:
             return self.build_config()
         except StudioTrackError:
-            return self.ctrl.config
+            return self.run.outputs_config
 
     def _sync_points_enabled(self, *_: Any) -> None:
         on = self.frame_points.isChecked()
@@ -398,7 +407,7 @@ class OutputsPage(QWidget):
             studio = StudioFrame.from_floor_points(*p)
         else:
             studio = StudioFrame()
-        base = self.ctrl.config
+        base = self.run.outputs_config
         return replace(
             base,
             targets=tuple(targets),
@@ -407,6 +416,8 @@ class OutputsPage(QWidget):
             lens=replace(base.lens, sensor_width_mm=self.sensor_w.value()),
             delays=self.delay_form.params or base.delays,
             studio=studio,
+            rate_hz=(None if self.rate_box.currentText() == "source"
+                     else parse_rate(self.rate_box.currentText())),
         )
 
     def apply(self) -> bool:
@@ -421,13 +432,20 @@ class OutputsPage(QWidget):
             self.error_label.setToolTip(str(exc))
             self._update_pending()
             return False
-        self.ctrl.apply(cfg)
+        try:
+            self.run.apply_outputs(cfg)  # refuses a target that cannot be reached at all
+        except StudioTrackError as exc:
+            self.error_label.setText(f"Not applied: {exc}")
+            self.error_label.setToolTip(str(exc))
+            self.ctx.log.error(f"outputs not applied: {exc}")
+            self._update_pending()
+            return False
         self.error_label.setText("")
         self.ctx.log.info("outputs: configuration applied")
         return True
 
     def revert(self) -> None:
-        self.load(self.ctrl.config)
+        self.load(self.run.outputs_config)
         self.error_label.setText("")
         self._update_pending()
 
@@ -435,15 +453,23 @@ class OutputsPage(QWidget):
         if on and self.pending and not self.apply():
             self.send_box.setChecked(False)
             return
-        self.ctrl.set_enabled(on)
+        try:
+            self.run.set_outputs_enabled(on)
+        except StudioTrackError as exc:
+            self.error_label.setText(f"Not switched on: {exc}")
+            self.ctx.log.error(f"outputs not switched on: {exc}")
+            self.send_box.setChecked(False)
         self.refresh_status()
 
-    def _on_enabled_changed(self, on: bool) -> None:
-        self.send_box.setChecked(on)
-        self.refresh_status()
-
-    def _on_config_changed(self, _cfg: object) -> None:
+    def _on_outputs_changed(self) -> None:
+        if self.send_box.isChecked() != self.run.outputs_enabled:
+            self.send_box.blockSignals(True)
+            self.send_box.setChecked(self.run.outputs_enabled)
+            self.send_box.blockSignals(False)
         self._update_pending()
+        self.refresh_status()
+
+    def refresh(self) -> None:
         self.refresh_status()
 
     # ------------------------------------------------------------------ read-outs
@@ -466,19 +492,22 @@ class OutputsPage(QWidget):
         self.bind_label.setAlignment(Qt.AlignmentFlag.AlignLeft)
 
     def refresh_status(self) -> None:
-        """Per-target status: off / waiting for poses / sending N Hz / error."""
-        st = self.ctrl.stats()
+        """Per-target status: off / armed / waiting for poses / sending N Hz / FAILING."""
+        st = self.run.output_stats() if self.run.is_running else None
         by_protocol = {t.protocol: t for t in st.targets} if st is not None else {}
-        applied = {t.protocol for t in self.ctrl.config.targets}
+        applied = {t.protocol for t in self.run.outputs_config.targets}
         for proto, label in (("freed", self.freed_status), ("opentrackio", self.otio_status)):
             t = by_protocol.get(proto)
             if proto not in applied:
                 text, color, tip = "off (target disabled)", MUTED_COLOR, ""
-            elif st is None or t is None:
+            elif not self.run.outputs_enabled:
                 text, color, tip = "off (sending is off)", MUTED_COLOR, ""
-            elif t.errors and t.last_error and t.rate_hz < 0.5:
-                # the message itself is in the tooltip and on the Operations page
-                text, color, tip = f"send error ×{t.errors}", ERROR_COLOR, \
+            elif st is None or t is None:
+                text, color, tip = "armed (no run)", PENDING_COLOR, \
+                    "sends when a run starts on any page"
+            elif t.failing:
+                # green only while packets leave without error
+                text, color, tip = f"FAILING ×{t.errors}: {t.last_error}", ERROR_COLOR, \
                     f"{t.errors} failed sends; last: {t.last_error}"
             elif t.rate_hz >= 0.5:
                 text, color = f"sending {t.rate_hz:.0f} Hz", OK_COLOR
@@ -492,12 +521,17 @@ class OutputsPage(QWidget):
             label.setText(text)
             label.setToolTip(tip)
             label.setStyleSheet(f"color: {color}")
-        if st is None:
+        if not self.run.outputs_enabled:
             self.send_state.setText("off — nothing is sent")
             self.send_state.setStyleSheet(f"color: {MUTED_COLOR}")
+        elif st is None:
+            self.send_state.setText("on — armed, sends while a run is active")
+            self.send_state.setStyleSheet(f"color: {PENDING_COLOR}")
         else:
             n = len(st.targets)
-            self.send_state.setText(f"on — {n} target{'s' if n != 1 else ''}")
+            rate = (f" at {st.rate_hz:.3f} Hz (output clock)" if st.clocked
+                    else " per tracked frame")
+            self.send_state.setText(f"on — {n} target{'s' if n != 1 else ''}{rate}")
             self.send_state.setStyleSheet(f"color: {OK_COLOR}")
 
 

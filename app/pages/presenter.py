@@ -6,12 +6,13 @@ selected patch, names are edited in the list); each patch's 10x10 hue-saturation
 (+ the brightness bins of hue-less pixels) is shown. Degenerate selections get a one-line
 message. Models are saved as model.json + reference.png in the project (or a session folder).
 
-Live: Start runs ``presenter`` on a private :class:`app.engine_bridge.EngineBridge` (the Live
-page's run is left alone). Boxes or a cross-hair over the video, the particle cloud, the
-colour likelihood with its Pmin / Pref lines, x / y raw vs jitter-filtered, the state light,
-the control errors (eq. 7-8) and the UDP target are shown. Every parameter edit is sent as
-``SetParams`` and applies on the next frame. Records are stored on arrival; a 30 Hz timer
-draws.
+Live: Start runs ``presenter`` through the window's run owner (``ctx.run``: the outputs,
+the robot-camera control sink and the status header follow it; a run of another page must be
+stopped first). Boxes or a cross-hair over the video, the particle cloud, the colour
+likelihood with its Pmin / Pref lines, x / y raw vs jitter-filtered, the state light, the
+control errors (eq. 7-8) and the UDP target are shown, every number from the frame drawn.
+Every parameter edit is sent as ``SetParams`` and applies on the next frame. The page draws
+on the window's display clock while shown; after Stop the live read-outs clear.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QRectF, QSize, Qt, QTimer, Slot
+from PySide6.QtCore import QRectF, QSize, Qt, Slot
 from PySide6.QtGui import QColor, QPainter
 from PySide6.QtWidgets import (
     QButtonGroup,
@@ -46,13 +47,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.engine_bridge import EngineBridge
 from app.pages import PageSpec
+from app.pages._base import Page
 from widgets.param_form import ParamForm
 from widgets.patch_canvas import PATCH_COLOURS, PatchCanvas
 from widgets.status_light import StatusLight
 
-REDRAW_HZ = 30
 CELL_PX = 9
 HISTORY = 300
 DEFAULT_SOURCE = "synthetic:frames=3000,seed=3,presenter=1,path=static"
@@ -106,13 +106,14 @@ class HistogramTile(QWidget):
         p.end()
 
 
-class PresenterPage(QWidget):
+class PresenterPage(Page):
+    follows_trackers = ("presenter",)
+
     def __init__(self, ctx: Any) -> None:
-        super().__init__()
+        super().__init__(ctx)
         from engine.presenter.params import PresenterParams
 
-        self.ctx = ctx
-        self.bridge = EngineBridge(self)
+        self.run = ctx.run
         self.reference: np.ndarray | None = None
         self.model: Any = None
         self.latest: Any = None
@@ -322,18 +323,11 @@ class PresenterPage(QWidget):
         outer.setContentsMargins(6, 6, 6, 6)
         outer.addWidget(split)
 
-        self.bridge.result_ready.connect(self._on_record)
-        self.bridge.failed.connect(lambda msg: self._say(f"tracking failed: {msg}", "error"))
-        self.bridge.started.connect(lambda: self._say("tracking started", "info"))
-        self.bridge.finished.connect(self._on_finished)
-        # Stop is only live while tracking runs (a bright red Stop on an idle page misleads)
-        self.stop_button.setEnabled(False)
-        self.bridge.started.connect(lambda: self.stop_button.setEnabled(True))
-        self.bridge.finished.connect(lambda: self.stop_button.setEnabled(False))
-        self.timer = QTimer(self)
-        self.timer.setInterval(int(1000 / REDRAW_HZ))
-        self.timer.timeout.connect(self.redraw)
-        self.timer.start()
+        self.run.failed.connect(self._on_failed)
+        self.run.started.connect(self._on_started)
+        self.run.finished.connect(self._on_finished)
+        # Start/Stop follow the run (a bright red Stop on an idle page misleads)
+        self._update_buttons()
 
     # ------------------------------------------------------------------ messages
     def _say(self, text: str, level: str = "info") -> None:
@@ -351,8 +345,9 @@ class PresenterPage(QWidget):
     def take_reference(self) -> None:
         """The latest tracked frame if running, else the first frame of the source."""
         frame = None
-        if self.latest is not None and self.bridge.is_running:
-            frame = self.latest.frame
+        rec = self.run.latest()
+        if rec is not None and self.follows(self.run.run_info):
+            frame = rec.frame
         else:
             from engine.errors import StudioTrackError
             from engine.sources import open_source
@@ -458,29 +453,15 @@ class PresenterPage(QWidget):
         """Histograms of the drawn patches even when the selection is not yet valid."""
         from types import SimpleNamespace
 
-        import cv2
-
-        from engine.presenter.likelihood import (
-            apply_gains,
-            direct_histogram,
-            grey_world_gains,
-        )
+        from engine.presenter.model import patch_histograms
 
         if self.reference is None:
             return None
         p = self.form.params
-        img = self.reference
-        if p.grey_world:
-            img = apply_gains(img, grey_world_gains(img))
-        hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
-        specs, hists = [], []
-        for r in self.canvas.patches:
-            x, y, w, h = (round(v) for v in r.xywh)
-            c = direct_histogram(hsv, (x, y, max(w, 1), max(h, 1)), p.n_bins)
-            if c.sum() > 0:
-                specs.append(SimpleNamespace(name=r.name))
-                hists.append(c / c.sum())
-        return SimpleNamespace(patches=specs, hists=hists, n_bins=p.n_bins)
+        named = patch_histograms(self.reference, [(r.name, r.xywh) for r in self.canvas.patches],
+                                 p.n_bins, grey_world=p.grey_world)
+        return SimpleNamespace(patches=[SimpleNamespace(name=n) for n, _ in named],
+                               hists=[h for _, h in named], n_bins=p.n_bins)
 
     @Slot(QListWidgetItem)
     def _on_item_renamed(self, item: QListWidgetItem) -> None:
@@ -552,6 +533,9 @@ class PresenterPage(QWidget):
     # ------------------------------------------------------------------ tracking
     @Slot()
     def start_tracking(self) -> bool:
+        if self.run.is_running:
+            self._say("a run is active: stop it first", "warning")
+            return False
         path = self.save_model()
         if path is None:
             return False
@@ -561,36 +545,69 @@ class PresenterPage(QWidget):
         self.hist_xy.clear()
         self._frames = 0
         self.canvas.show_model = False
-        self.bridge.start(self.source_edit.text(), "presenter", params,
-                          realtime=self.realtime_check.isChecked())
-        self.stop_button.setEnabled(self.bridge.is_running)
+        self.run.start(self.source_edit.text(), "presenter", params,
+                       realtime=self.realtime_check.isChecked(), page="Presenter")
+        self._update_buttons()
         return True
 
     @Slot()
     def stop_tracking(self) -> None:
-        self.bridge.stop()
+        self.run.stop()
 
-    @Slot()
-    def _on_finished(self) -> None:
+    def _update_buttons(self) -> None:
+        running = self.run.is_running
+        self.start_button.setEnabled(not running)
+        self.start_button.setToolTip("Save the model and track it" if not running else
+                                     "A run is active: stop it first")
+        self.stop_button.setEnabled(running)
+
+    @Slot(object)
+    def _on_started(self, info: Any) -> None:
+        self._update_buttons()
+        if self.follows(info):
+            self._say("tracking started", "info")
+
+    @Slot(str)
+    def _on_failed(self, message: str) -> None:
+        self._update_buttons()
+        req = self.run.request
+        if req is not None and req.page == "Presenter":
+            self._say(f"tracking failed: {message}", "error")
+
+    @Slot(object)
+    def _on_finished(self, status: Any) -> None:
+        self.run_ended(status)
+
+    def run_ended(self, status: Any) -> None:
+        """Nothing stale after Stop: the light, read-outs and live overlay clear."""
+        self.latest = None
         self.canvas.show_model = True
-        self.light.set_state(None)
+        self.canvas.set_live([], None, None, None, None)
+        self.light.set_state(None, "STOPPED")
+        self.readout.setText("Not tracking.")
+        self.control_label.setText("Robot-camera control: shown while tracking.")
         self.canvas.update()
+        self._update_buttons()
+
+    def run_changed(self, info: Any) -> None:
+        self._update_buttons()
 
     @Slot(object)
     def _on_params(self, params: Any) -> None:
-        if self.bridge.is_running:
-            self.bridge.set_params(params)
+        info = self.run.run_info
+        if self.run.is_running and self.follows(info):
+            self.run.set_params(params)
         if self.reference is not None and self.canvas.main is not None:
             self._on_rects_changed()
 
-    @Slot(object)
-    def _on_record(self, record: Any) -> None:
-        self.latest = record
-        self._frames += 1
+    def add_samples(self, samples: list[Any], missed: int) -> None:
         from engine.trackers.presenter import PresenterDetails
 
-        ex = record.result.details_as(PresenterDetails)
-        if ex is not None:
+        for smp in samples:
+            self._frames += 1
+            ex = smp.details if isinstance(smp.details, PresenterDetails) else None
+            if ex is None:
+                continue
             self.hist_p.append((max(ex.p_col, 1e-12), max(ex.p_min, 1e-12),
                                 max(ex.p_ref, 1e-12)))
             raw, filt = ex.raw_xyh, ex.filtered_xyh
@@ -600,16 +617,18 @@ class PresenterPage(QWidget):
 
     @Slot()
     def redraw(self) -> None:
-        rec = self.latest
-        if rec is None or not self.bridge.is_running:
-            return
+        """Draw now (tests, screenshots): what the display clock would draw."""
+        self.display_tick()
+
+    def draw(self, rec: Any) -> None:
+        from engine.trackers.presenter import PresenterDetails
+
+        self.latest = rec
         res = rec.result
         self.canvas.set_image(rec.frame.color_bgr)
         ov = res.overlay
         boxes: list[tuple[Any, str]] = []
         cross = None
-        from engine.trackers.presenter import PresenterDetails
-
         ex = res.details_as(PresenterDetails)
         if ov is not None:
             if self.boxes_radio.isChecked():
@@ -625,16 +644,24 @@ class PresenterPage(QWidget):
             target = (cmd.target_x_px, cmd.target_y_px)
         self.canvas.set_live(boxes, cross, parts, weights, target)
         self.light.set_state(res.state)
+        st = self.run.status()
+        fps = st.fps if st is not None else rec.fps
         if ex is not None:
             self.readout.setText(
                 f"P {ex.p_col:.3g}   Pref {ex.p_ref:.3g}   Pmin {ex.p_min:.3g}\n"
                 f"particles {ex.n_particles}   lost frames {ex.lost_frames}\n"
                 f"jitter lag {ex.lag_frames:.1f} frames = {ex.lag_s:.2f} s   "
-                f"{rec.fps:.0f} fps")
+                f"{fps:.0f} fps")
+        elif res.message:
+            self.readout.setText(res.message)
         if cmd is not None:
             p = self.form.params
             udp = (f"UDP -> {p.control_host}:{p.control_port}" if p.control_udp
                    else "UDP off")
+            robot = next((h for h in (st.sinks if st is not None else ())
+                          if h.name == "robot camera"), None)
+            if robot is not None and robot.level.is_bad:
+                udp += f" FAILING: {robot.message}"
             ed = "-" if cmd.e_d_m is None else f"{cmd.e_d_m:+.2f} m"
             self.control_label.setText(
                 f"e_f = [{cmd.e_f_px[0]:+.1f}, {cmd.e_f_px[1]:+.1f}] px   e_d = {ed}\n"
@@ -655,10 +682,6 @@ class PresenterPage(QWidget):
             self.d_curve.setData(t[ok], xy[ok, 4])
             self.d_plot.setTitle("d (m) from the overhead view" if ok.any()
                                  else "d: no overhead view in this source")
-
-    def closeEvent(self, event: Any) -> None:
-        self.bridge.stop()
-        super().closeEvent(event)
 
 
 def _factory(ctx: Any) -> QWidget:

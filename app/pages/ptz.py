@@ -7,11 +7,14 @@ Tabs:
 - Lens lines (sec. 3.3): click points along world-straight lines (New line starts another)
   or accept proposed lines (chessboard rows, LSD chains); Estimate fits the inverse radial
   model; Preview shows the undistorted image with the corrected lines overlaid.
-- Live (sec. 4-6): ``ptz-sim`` through the ``ptz`` tracker on a private engine bridge;
+- Live (sec. 4-6): ``ptz-sim`` through the ``ptz`` tracker, run by the window's run owner
+  (outputs and the status header follow it; the simulated head obeys the tracker's commands
+  through the pipeline's head sink);
   video with the evolving snake (grey) and final contour (blue), measured centre and
   predicted position; top view and height (estimate vs truth), model probabilities and
   estimated omega over time (the paper's Fig. 6), position/velocity/acceleration with
-  2-sigma bands. Records are stored on arrival and a 30 Hz timer draws.
+  2-sigma bands. The plots take every frame from the run's history; the page draws on the
+  window's display clock while shown.
 """
 
 from __future__ import annotations
@@ -21,10 +24,9 @@ from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, QTimer, Slot
+from PySide6.QtCore import Qt, Slot
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
-    QApplication,
     QFileDialog,
     QGridLayout,
     QHBoxLayout,
@@ -39,9 +41,9 @@ from PySide6.QtWidgets import (
 )
 
 from app.pages import PageSpec
+from app.pages._base import Page
 from engine.shared_data import shared_data_dir
 
-REDRAW_HZ = 30
 HISTORY = 3000
 MODEL_COLOURS = [(230, 230, 230), (255, 90, 90), (90, 200, 255), (255, 200, 60),
                  (160, 255, 120), (220, 120, 255)]
@@ -399,18 +401,15 @@ class LivePanel(QWidget):
 
     def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        from app.engine_bridge import EngineBridge
         from engine.trackers.ptz import PtzParams
         from widgets.param_form import ParamForm
 
         self.ctx = ctx
-        self.bridge = EngineBridge(self)
-        self.bridge.result_ready.connect(self._on_record)
-        self.bridge.failed.connect(self._on_failed)
-        self.bridge.started.connect(lambda: self.stop_button.setEnabled(True))
-        self.bridge.finished.connect(lambda: self.stop_button.setEnabled(False))
+        self.run = ctx.run
+        self.run.started.connect(lambda _i: self.update_buttons())
+        self.run.finished.connect(lambda _s: self.run_ended())
+        self.run.failed.connect(self._on_failed)
         self._latest: Any = None
-        self._dirty = False
         self.t: list[float] = []
         self.est: list[np.ndarray] = []
         self.sig: list[np.ndarray] = []
@@ -419,7 +418,7 @@ class LivePanel(QWidget):
         self.omega: list[float] = []
         self.omega_true: list[float] = []
         self.form = ParamForm(PtzParams().with_preset("ptz-sim"))
-        self.form.params_changed.connect(self.bridge.set_params)
+        self.form.params_changed.connect(self._on_params)
         self.start_button = QPushButton("Start (ptz-sim)")
         self.start_button.setObjectName("ptz_start")
         self.stop_button = QPushButton("Stop")
@@ -506,67 +505,94 @@ class LivePanel(QWidget):
         split.setCollapsible(0, False)
         lay = QVBoxLayout(self)
         lay.addWidget(split)
-        self.timer = QTimer(self)
-        self.timer.timeout.connect(self.redraw)
-        self.timer.start(int(1000 / REDRAW_HZ))
-        app = QApplication.instance()
-        if app is not None:  # the main window's close only stops the shared bridge
-            app.aboutToQuit.connect(self.bridge.stop)
+        self.update_buttons()
 
     def start(self, spec: str = "ptz-sim:duration=60,period=50", realtime: bool = True) -> None:
+        if self.run.is_running:
+            self.readout.setText("A run is active: stop it first.")
+            return
+        self.clear_history()
+        self.run.start(spec if isinstance(spec, str) else "ptz-sim:duration=60,period=50",
+                       "ptz", self.form.params, realtime=realtime, page="PTZ")
+        self.update_buttons()
+
+    def stop(self) -> None:
+        self.run.stop()
+
+    def clear_history(self) -> None:
         for lst in (self.t, self.est, self.sig, self.truth, self.probs, self.omega,
                     self.omega_true):
             lst.clear()
-        self.bridge.start(spec if isinstance(spec, str) else "ptz-sim:duration=60,period=50",
-                          "ptz", self.form.params, realtime=realtime)
-        self.stop_button.setEnabled(self.bridge.is_running)
 
-    def stop(self) -> None:
-        self.bridge.stop()
+    def update_buttons(self) -> None:
+        running = self.run.is_running
+        self.start_button.setEnabled(not running)
+        self.stop_button.setEnabled(running)
 
-    @Slot(object)
-    def _on_record(self, rec: Any) -> None:
-        self._latest = rec
-        self._dirty = True
+    def _on_params(self, params: Any) -> None:
+        info = self.run.run_info
+        if self.run.is_running and info is not None and info.tracker_name == "ptz":
+            self.run.set_params(params)
+
+    def run_ended(self) -> None:
+        """Nothing stale after Stop: the live markers and the read-out clear."""
+        self._latest = None
+        for it in (*self.snake_items, self.final_contour):
+            it.setData([], [])
+        self.centre.setData([], [])
+        self.pred.setData([], [])
+        err = self.run.last_error
+        self.readout.setText(f"⚠ {err}" if err and not self.run.stopped_by_user else
+                             f"Stopped after {len(self.t)} tracked frames.")
+        self.update_buttons()
+
+    def add_samples(self, samples: list[Any], missed: int) -> None:
         from engine.ptz.sim import PtzTargetTruth
         from engine.trackers.ptz import PtzDetails
 
-        ex = rec.result.details_as(PtzDetails)
-        if ex is None or ex.target_xyz is None:
-            return
-        x = np.concatenate([ex.target_xyz, ex.target_vel, ex.target_acc])
-        order = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
-        sig = np.sqrt(np.clip(np.diag(ex.target_cov)[order], 0, None))
-        fe = rec.frame.payload(PtzTargetTruth)
-        nan3 = (np.nan, np.nan, np.nan)
-        tru = np.concatenate([fe.xyz_world if fe else nan3, fe.vel_world if fe else nan3,
-                              fe.acc_world if fe else nan3])
-        self.t.append(rec.frame.timestamp_s)
-        self.est.append(x)
-        self.sig.append(sig)
-        self.truth.append(tru)
-        self.probs.append(np.asarray(ex.model_probs))
-        self.omega.append(float(ex.omega_rad_s or 0.0))
-        self.omega_true.append(float(fe.omega_rad_s) if fe else np.nan)
+        for smp in samples:
+            ex = smp.details if isinstance(smp.details, PtzDetails) else None
+            if ex is None or ex.target_xyz is None:
+                continue
+            x = np.concatenate([ex.target_xyz, ex.target_vel, ex.target_acc])
+            order = np.array([0, 3, 6, 1, 4, 7, 2, 5, 8])
+            sig = np.sqrt(np.clip(np.diag(ex.target_cov)[order], 0, None))
+            fe = smp.payload(PtzTargetTruth)
+            nan3 = (np.nan, np.nan, np.nan)
+            tru = np.concatenate([fe.xyz_world if fe else nan3, fe.vel_world if fe else nan3,
+                                  fe.acc_world if fe else nan3])
+            self.t.append(smp.timestamp_s)
+            self.est.append(x)
+            self.sig.append(sig)
+            self.truth.append(tru)
+            self.probs.append(np.asarray(ex.model_probs))
+            self.omega.append(float(ex.omega_rad_s or 0.0))
+            self.omega_true.append(float(fe.omega_rad_s) if fe else np.nan)
+            if not self.p_curves and ex.omegas is not None:
+                for j, w in enumerate(ex.omegas):
+                    self.p_curves.append(self.pplot.plot(
+                        pen=pg.mkPen(MODEL_COLOURS[j % len(MODEL_COLOURS)], width=2),
+                        name=f"p{j + 1} ω={w:.3f}"))
         if len(self.t) > HISTORY:
             for lst in (self.t, self.est, self.sig, self.truth, self.probs, self.omega,
                         self.omega_true):
-                del lst[0]
-        if not self.p_curves and ex.omegas is not None:
-            for j, w in enumerate(ex.omegas):
-                self.p_curves.append(self.pplot.plot(
-                    pen=pg.mkPen(MODEL_COLOURS[j % len(MODEL_COLOURS)], width=2),
-                    name=f"p{j + 1} ω={w:.3f}"))
+                del lst[: len(lst) - HISTORY]
 
     @Slot(str)
     def _on_failed(self, msg: str) -> None:
-        self.readout.setText(f"⚠ {msg}")
+        req = self.run.request
+        if req is not None and req.page == "PTZ":
+            self.readout.setText(f"⚠ {msg}")
+        self.update_buttons()
 
     def redraw(self) -> None:
-        if not self._dirty or self._latest is None:
-            return
-        self._dirty = False
-        rec = self._latest
+        """Draw the newest record now (tests, screenshots)."""
+        rec = self.run.latest()
+        if rec is not None:
+            self.draw(rec)
+
+    def draw(self, rec: Any) -> None:
+        self._latest = rec
         if rec.frame.color_bgr is not None:
             self.video.image_item.setImage(np.ascontiguousarray(rec.frame.color_bgr[..., ::-1]),
                                            autoLevels=False, levels=(0, 255))
@@ -629,11 +655,12 @@ def _deg_pair(value: Any) -> str:
     return f"{pan:.1f}° / {tilt:.1f}°"
 
 
-class PtzPage(QWidget):
+class PtzPage(Page):
+    follows_trackers = ("ptz",)
+
     def __init__(self, ctx: Any, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
+        super().__init__(ctx, parent)
         self.setObjectName("page_ptz")
-        self.ctx = ctx
         self.tabs = QTabWidget()
         self.points = CalibPointsPanel()
         self.lines = LinesPanel()
@@ -658,9 +685,16 @@ class PtzPage(QWidget):
         img = cv2.imread(str(radial)) if radial.exists() else None
         self.lines.set_image(img if img is not None else np.ascontiguousarray(frame.color_bgr))
 
-    def shutdown(self) -> None:
-        self.live.timer.stop()
-        self.live.bridge.stop()
+    # the page base calls these; the Live tab draws them (calibration tabs need no clock)
+    def run_changed(self, info: Any) -> None:
+        self.live.update_buttons()
+
+    def add_samples(self, samples: list[Any], missed: int) -> None:
+        self.live.add_samples(samples, missed)
+
+    def draw(self, record: Any) -> None:
+        if self.tabs.currentWidget() is self.live:
+            self.live.draw(record)
 
 
 def _factory(ctx: Any) -> QWidget:

@@ -33,6 +33,7 @@ from engine.presenter.likelihood import (
 )
 
 XYWH = tuple[float, float, float, float]
+F64 = NDArray[np.float64]
 MODEL_VERSION = 1
 MIN_SIDE_PX = 2.0
 GREY_FRACTION = 0.2  # below this fraction of pixels with a hue, a patch is reported grey
@@ -176,6 +177,25 @@ AUTO_SPLITS: dict[int, tuple[tuple[str, float, float], ...]] = {
     3: (("head", 0.0, 0.25), ("torso", 0.25, 0.6), ("legs", 0.6, 1.0)),
     4: (("top", 0.0, 0.25), ("upper", 0.25, 0.5), ("lower", 0.5, 0.75), ("bottom", 0.75, 1.0)),
 }
+
+
+def patch_histograms(image_bgr: NDArray[np.uint8],
+                     patches: Sequence[tuple[str, Sequence[float]]], n_bins: int,
+                     grey_world: bool = False) -> list[tuple[str, F64]]:
+    """Normalised hue-saturation (+ brightness) histograms of drawn patches, also while the
+    selection is not a valid model yet (the set-up page shows them as the operator drags).
+
+    Patches without any pixel in the image are left out.
+    """
+    img = apply_gains(image_bgr, grey_world_gains(image_bgr)) if grey_world else image_bgr
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    out: list[tuple[str, F64]] = []
+    for name, xywh in patches:
+        x, y, w, h = (round(v) for v in xywh)
+        c = direct_histogram(hsv, (x, y, max(w, 1), max(h, 1)), n_bins)
+        if c.sum() > 0:
+            out.append((name, c / c.sum()))
+    return out
 
 
 def auto_patches(main_xywh: Sequence[float], n: int = 3) -> tuple[PatchSpec, ...]:

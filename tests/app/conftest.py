@@ -27,7 +27,7 @@ def ctx(qtbot, settings_path: Path) -> Iterator[object]:  # type: ignore[no-unty
     configure_pyqtgraph()
     context = AppContext(settings=QSettings(str(settings_path), QSettings.Format.IniFormat))
     yield context
-    context.bridge.stop()
+    context.run.stop()
 
 
 @pytest.fixture
@@ -38,7 +38,7 @@ def window(qtbot, ctx):  # type: ignore[no-untyped-def]
     qtbot.addWidget(win)
     win.show()
     yield win
-    ctx.bridge.stop()
+    ctx.run.stop()
 
 
 @pytest.fixture

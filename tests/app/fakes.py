@@ -1,4 +1,4 @@
-"""Tiny fake source and trackers for engine-bridge and window tests (error injection)."""
+"""Tiny fake source and trackers for run-owner and window tests (error injection)."""
 
 from __future__ import annotations
 

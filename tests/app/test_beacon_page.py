@@ -22,7 +22,7 @@ def page(qtbot, tmp_path: Path) -> BeaconsPage:  # type: ignore[no-untyped-def]
     qtbot.addWidget(w)
     w.resize(1280, 800)
     yield w
-    w.bridge.stop()
+    w.run.stop()
 
 
 def test_page_is_discovered() -> None:
@@ -31,21 +31,25 @@ def test_page_is_discovered() -> None:
 
 def test_page_runs_the_simulator(qtbot, page: BeaconsPage) -> None:  # type: ignore[no-untyped-def]
     page.steps_spin.setValue(40)
-    page.fps_spin.setValue(400.0)
+    page.fps_spin.setValue(100.0)
     page.outlier_spin.setValue(0.05)
-    with qtbot.waitSignal(page.bridge.finished, timeout=20000):
+    with qtbot.waitSignal(page.run.finished, timeout=20000):
         page.start_button.click()
-        qtbot.waitUntil(lambda: page.records_seen >= 5, timeout=10000)
+        assert not page.start_button.isEnabled()
+        # the window's display clock drives the page (here: the test ticks it)
+        qtbot.waitUntil(lambda: (page.display_tick(), page.records_seen >= 5)[1],
+                        timeout=10000)
         # a live edit of the particle count reaches the tracker on the next step
         form = page.param_form
         new = dataclasses.replace(form.params, n_particles=90, map_adjust_p=0.1)
         form.set_params(new)
-        with qtbot.waitSignal(page.bridge.params_changed, timeout=2000):
+        with qtbot.waitSignal(page.run.params_changed, timeout=2000):
             form.params_changed.emit(new)
+        qtbot.waitUntil(lambda: (page.display_tick(), page.records_seen >= 30)[1],
+                        timeout=10000)
+    page.display_tick()  # the last steps of the run still reach the paths
     assert page.records_seen == 41
     assert len(page.est_path) == len(page.true_path) == len(page.errors_m) == 41
-    page._dirty = True
-    page._redraw()
     assert page.particles_item.data.shape[0] == 90  # the new particle count was applied
     assert float(np.sqrt(np.mean(np.square(page.errors_m)))) < 3.0
     assert "Finished" in page.status_label.text()
@@ -58,10 +62,11 @@ def test_stop_ends_the_run(qtbot, page: BeaconsPage) -> None:  # type: ignore[no
     page.steps_spin.setValue(100000)
     page.fps_spin.setValue(50.0)
     page.start_button.click()
-    qtbot.waitUntil(lambda: page.records_seen >= 2, timeout=10000)
-    with qtbot.waitSignal(page.bridge.finished, timeout=10000):
+    qtbot.waitUntil(lambda: (page.display_tick(), page.records_seen >= 2)[1], timeout=10000)
+    with qtbot.waitSignal(page.run.finished, timeout=10000):
         page.stop_button.click()
-    assert not page.bridge.is_running
+    assert not page.run.is_running
+    assert page.status_label.text().startswith("Stopped")
 
 
 def test_layout_editing_import_export(page: BeaconsPage, tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel
 
 import engine.trackers as trackers
-from app.engine_bridge import running_threads
+from app.run_owner import running_threads
 from tests.app.conftest import REAL_TRACKER, SMALL_STUDIO
 from tests.app.fakes import EXPLODE_SPEC
 
@@ -26,16 +26,16 @@ def test_pages_are_discovered_with_live_first(window) -> None:  # type: ignore[n
 
 def test_click_start_and_stop(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
     _configure(live)
-    bridge = window.ctx.bridge
+    run = window.ctx.run
     assert live.start_button.isEnabled()
     assert not live.stop_button.isEnabled()
-    with qtbot.waitSignal(bridge.started, timeout=30_000):
+    with qtbot.waitSignal(run.started, timeout=30_000):
         qtbot.mouseClick(live.start_button, Qt.MouseButton.LeftButton)
     assert not live.start_button.isEnabled()
     assert live.stop_button.isEnabled()
     assert not live.tracker_box.isEnabled()
-    qtbot.waitUntil(lambda: bridge.frames_received >= 3, timeout=30_000)
-    with qtbot.waitSignal(bridge.finished, timeout=10_000):
+    qtbot.waitUntil(lambda: run.frames_received >= 3, timeout=30_000)
+    with qtbot.waitSignal(run.finished, timeout=10_000):
         qtbot.mouseClick(live.stop_button, Qt.MouseButton.LeftButton)
     assert live.start_button.isEnabled()
     assert not live.stop_button.isEnabled()
@@ -54,25 +54,25 @@ def test_switch_sources(qtbot, window, live, tmp_path) -> None:  # type: ignore[
     assert picker.kind == "folder"
     assert picker.spec() == str(tmp_path)
     # tracking one source, then another: the second run starts from its own first frame
-    bridge = window.ctx.bridge
+    run = window.ctx.run
     _configure(live, "synthetic:frames=4,width=160,height=120,path=pan")
-    with qtbot.waitSignal(bridge.finished, timeout=60_000):
+    with qtbot.waitSignal(run.finished, timeout=60_000):
         live.start()
-    assert bridge.run_info is not None
-    assert "pan" in bridge.run_info.source_spec
-    assert bridge.frames_received == 4
+    assert run.run_info is not None
+    assert "pan" in run.run_info.source_spec
+    assert run.frames_received == 4
     _configure(live, "synthetic:frames=3,width=160,height=120,path=handheld")
-    with qtbot.waitSignal(bridge.finished, timeout=60_000):
+    with qtbot.waitSignal(run.finished, timeout=60_000):
         live.start()
-    assert "handheld" in bridge.run_info.source_spec
-    assert bridge.frames_received == 3
+    assert "handheld" in run.run_info.source_spec
+    assert run.frames_received == 3
     assert live.status_light.text == "STOPPED"
 
 
 def test_bad_source_path_shows_one_line_error(qtbot, window, live, tmp_path) -> None:  # type: ignore[no-untyped-def]
     missing = tmp_path / "no_such_sequence"
     _configure(live, str(missing))
-    with qtbot.waitSignal(window.ctx.bridge.finished, timeout=10_000):
+    with qtbot.waitSignal(window.ctx.run.finished, timeout=10_000):
         live.start()
     text = window.status_text()
     assert f"SourceError: {missing}: no such file or folder" in text
@@ -93,54 +93,67 @@ def test_survives_engine_error_and_starts_again(qtbot, monkeypatch, ctx) -> None
     window.show()
     live = window.page("Live")
     _configure(live, tracker="explode")
-    bridge = ctx.bridge
-    with qtbot.waitSignals([bridge.failed, bridge.finished], timeout=30_000, order="strict"):
+    run = ctx.run
+    with qtbot.waitSignal(run.failed, timeout=30_000):
         live.start()
     assert "RuntimeError: injected failure at frame 5" in window.status_text()
     assert live.error_label.text() == "RuntimeError: injected failure at frame 5"
     assert window.isVisible()
+    # the run holds (outputs keep sending LOST) until the operator stops: ERROR, Stop live
+    window.display_tick(force_header=True)
+    assert window.header.state.state == "ERROR"
+    assert live.stop_button.isEnabled()
+    with qtbot.waitSignal(run.finished, timeout=10_000):
+        live.stop_button.click()
     assert live.start_button.isEnabled()
     assert running_threads() == []
+    window.display_tick(force_header=True)
+    assert window.header.state.state == "STOPPED"
     # one click starts the real tracker again
     _configure(live)
-    with qtbot.waitSignal(bridge.started, timeout=30_000):
+    with qtbot.waitSignal(run.started, timeout=30_000):
         live.start_button.click()
-    qtbot.waitUntil(lambda: bridge.frames_received >= 2, timeout=30_000)
+    qtbot.waitUntil(lambda: run.frames_received >= 2, timeout=30_000)
     live.stop_button.click()
-    assert not bridge.is_running
-    assert bridge.last_error is None
+    assert not run.is_running
+    assert run.last_error is None
 
 
 def test_param_edit_reaches_the_running_tracker(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
     _configure(live)
-    bridge = window.ctx.bridge
-    with qtbot.waitSignal(bridge.started, timeout=30_000):
+    run = window.ctx.run
+    with qtbot.waitSignal(run.started, timeout=30_000):
         live.start()
     spin = live.param_form.editor("max_depth_m")
-    with qtbot.waitSignal(bridge.params_changed, timeout=5_000) as blocker:
+    with qtbot.waitSignal(run.params_changed, timeout=5_000) as blocker:
         spin.setValue(5.5)
     assert blocker.args[0].max_depth_m == pytest.approx(5.5)
-    assert bridge.run_info.params.max_depth_m == pytest.approx(5.5)
+    assert run.run_info.params.max_depth_m == pytest.approx(5.5)
     live.stop()
 
 
 def test_live_view_shows_image_and_moving_plots(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
     """The screenshot test: a non-blank live image and plots that move between two grabs."""
     _configure(live)
-    bridge = window.ctx.bridge
-    with qtbot.waitSignal(bridge.started, timeout=30_000):
+    run = window.ctx.run
+    with qtbot.waitSignal(run.started, timeout=30_000):
         live.start()
-    qtbot.waitUntil(lambda: bridge.frames_received >= 4, timeout=60_000)
+    qtbot.waitUntil(lambda: run.frames_received >= 4, timeout=60_000)
     live.redraw()
     first = window.grab().toImage()
     lengths_1 = live.pose_plots.curve_lengths()
-    n1 = bridge.frames_received
-    qtbot.waitUntil(lambda: bridge.frames_received >= n1 + 4, timeout=60_000)
+    n1 = run.frames_received
+    qtbot.waitUntil(lambda: run.frames_received >= n1 + 4, timeout=60_000)
     live.redraw()
     second = window.grab().toImage()
     lengths_2 = live.pose_plots.curve_lengths()
     state_while_running = live.status_light.state
+    fps_text, latency_text = live.fps_label.text(), live.latency_label.text()
     live.stop()
+    # nothing stale after Stop: the read-outs clear, the light says STOPPED
+    assert live.fps_label.text() == "–"
+    assert live.readouts["inliers"].text() == "–"
+    assert live.status_light.text == "STOPPED"
 
     assert not first.isNull()
     assert first.width() > 800
@@ -166,8 +179,8 @@ def test_live_view_shows_image_and_moving_plots(qtbot, window, live) -> None:  #
     gt_x = live.pose_plots.gt_curves[0].xData
     assert gt_x is not None
     assert len(gt_x) == lengths_2[0]
-    assert live.fps_label.text() != "–"
-    assert live.latency_label.text() != "–"
+    assert fps_text != "–"
+    assert latency_text != "–"
     assert state_while_running is not None  # TRACKING / LOST ... of the last frame
 
 
@@ -228,10 +241,10 @@ def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch,
     window.show()
     live = window.page("Live")
     live.configure(source="fake:100000000", tracker="fake", realtime=False)
-    bridge = ctx.bridge
-    with qtbot.waitSignal(bridge.started, timeout=10_000):
+    run = ctx.run
+    with qtbot.waitSignal(run.started, timeout=10_000):
         live.start()
-    qtbot.waitUntil(lambda: bridge.frames_received >= 300, timeout=30_000)
+    qtbot.waitUntil(lambda: run.frames_received >= 300, timeout=30_000)
     # the event loop still runs timers promptly while the engine runs flat out
     from PySide6.QtCore import QTimer
 
@@ -241,20 +254,23 @@ def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch,
         with qtbot.waitSignal(timer.timeout, timeout=1_000):
             timer.start(10)
     qtbot.waitUntil(lambda: live._frames_shown >= 2, timeout=5_000)
-    received, shown = bridge.frames_received, live._frames_shown
     live.stop()
-    assert shown < received  # drawing is on the timer, not per record
-    assert live.pose_plots.est.total == received  # every record reached the plot buffers
+    live.redraw()  # the display drains the rest of the run's history
+    received, shown = run.frames_received, live.draws
+    assert shown < received  # drawing is on the display clock, not per record
+    # every frame reached the plots, except those pushed out of the history between ticks
+    assert live.pose_plots.est.total + live.samples_missed == received
+    assert live.pose_plots.est.total > shown
 
 
 def test_closing_the_window_stops_the_engine(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
     _configure(live)
-    bridge = window.ctx.bridge
-    with qtbot.waitSignal(bridge.started, timeout=30_000):
+    run = window.ctx.run
+    with qtbot.waitSignal(run.started, timeout=30_000):
         live.start()
-    with qtbot.waitSignal(bridge.finished, timeout=10_000):
+    with qtbot.waitSignal(run.finished, timeout=10_000):
         window.close()
-    assert not bridge.is_running
+    assert not run.is_running
     assert running_threads() == []
 
 
@@ -270,12 +286,15 @@ def test_loss_and_recovery_are_logged_once(qtbot, monkeypatch, ctx) -> None:  # 
     live = window.page("Live")
     live.configure(source="fake:12", tracker="fake", realtime=False)
     live.param_form.set_params(FakeParams(lost_frames=(3, 4, 5)))
-    with qtbot.waitSignal(ctx.bridge.finished, timeout=10_000):
+    with qtbot.waitSignal(ctx.run.finished, timeout=10_000):
         live.start()
     lines = [e.message for e in ctx.log.entries() if e.origin == "tracker"]
+    # every state change once, in order (the fake reports DEGRADED on frames 0 and 10)
     assert lines == [
+        "first frame DEGRADED at frame 0",
         "tracking LOST at frame 3",
         "tracking recovered at frame 6 after 3 frames",
+        "tracking DEGRADED at frame 10",
     ]
 
 
@@ -293,14 +312,16 @@ def test_form_follows_a_run_started_elsewhere(qtbot, monkeypatch, ctx) -> None: 
     live = window.page("Live")
     live.configure(tracker="explode")
     # e.g. a replay page starts the shared engine with another tracker and params
-    with qtbot.waitSignal(ctx.bridge.started, timeout=10_000):
-        ctx.bridge.start("fake:100000000", "fake", params=FakeParams(gain=2.5), realtime=True)
+    with qtbot.waitSignal(ctx.run.started, timeout=10_000):
+        ctx.run.start("fake:100000000", "fake", params=FakeParams(gain=2.5), realtime=True,
+                      page="Replay")
     assert live.tracker_name == "fake"
     assert live.param_form.params == FakeParams(gain=2.5)
     assert not live.start_button.isEnabled()
-    ctx.bridge.set_params(FakeParams(gain=3.0))
+    assert "Replay" in live.stop_button.toolTip()
+    ctx.run.set_params(FakeParams(gain=3.0))
     assert live.param_form.params == FakeParams(gain=3.0)
-    ctx.bridge.stop()
+    ctx.run.stop()
 
 
 def test_every_page_has_its_own_nav_icon(window) -> None:  # type: ignore[no-untyped-def]

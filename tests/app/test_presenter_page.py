@@ -61,9 +61,13 @@ def test_drag_main_region_and_three_patches_then_track(qtbot, ctx) -> None:  # t
     _drag(page.canvas, (px + pw / 2, py + ph / 2), (px + pw / 2, py + ph / 2 + 2))
     assert page.canvas.selected == 1
 
-    with qtbot.waitSignal(page.bridge.started, timeout=20000):
+    assert not page.stop_button.isEnabled()  # Stop only while a run is active
+    with qtbot.waitSignal(page.run.started, timeout=20000):
         qtbot.mouseClick(page.start_button, Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: page._frames >= 5, timeout=30000)
+    assert not page.start_button.isEnabled()
+    assert page.stop_button.isEnabled()
+    # the window's display clock drives the page (here: the test ticks it)
+    qtbot.waitUntil(lambda: (page.display_tick(), page._frames >= 5)[1], timeout=30000)
     page.redraw()
     assert page.light.state is not None
     assert "P " in page.readout.text()
@@ -71,9 +75,16 @@ def test_drag_main_region_and_three_patches_then_track(qtbot, ctx) -> None:  # t
     # a live edit goes to the engine as SetParams
     editor = page.form.editor("n_particles")
     editor.setValue(150)
-    qtbot.waitUntil(lambda: page.latest.result.details.n_particles == 150, timeout=20000)
-    with qtbot.waitSignal(page.bridge.finished, timeout=20000):
+    qtbot.waitUntil(lambda: (page.display_tick(), page.latest is not None
+                             and page.latest.result.details.n_particles == 150)[1],
+                    timeout=20000)
+    with qtbot.waitSignal(page.run.finished, timeout=20000):
         page.stop_tracking()
+    # nothing stale after Stop
+    assert page.light.text == "STOPPED"
+    assert page.readout.text() == "Not tracking."
+    assert page.start_button.isEnabled()
+    assert not page.stop_button.isEnabled()
 
 
 def test_degenerate_selection_message(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
@@ -97,7 +108,7 @@ def test_degenerate_selection_message(qtbot, ctx) -> None:  # type: ignore[no-un
     assert page.model is not None  # grey is a warning, not an error
     page.source_edit.setText(SOURCE)
     page.realtime_check.setChecked(False)
-    with qtbot.waitSignal(page.bridge.started, timeout=20000):
+    with qtbot.waitSignal(page.run.started, timeout=20000):
         assert page.start_tracking() is True
-    with qtbot.waitSignal(page.bridge.finished, timeout=20000):
+    with qtbot.waitSignal(page.run.finished, timeout=20000):
         page.stop_tracking()

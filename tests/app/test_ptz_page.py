@@ -27,7 +27,7 @@ def page(qtbot):  # type: ignore[no-untyped-def]
     w.tabs.setCurrentWidget(w.points)
     qtbot.waitExposed(w)
     yield w
-    w.shutdown()
+    w.ctx.run.stop()
     ctx.shutdown()
 
 
@@ -123,13 +123,18 @@ def test_lines_estimate_and_preview(page) -> None:  # type: ignore[no-untyped-de
 
 def test_live_runs_the_sim(page, qtbot) -> None:  # type: ignore[no-untyped-def]
     live = page.live
-    live.start("ptz-sim:duration=1.5", realtime=False)
-    qtbot.waitUntil(lambda: not live.bridge.is_running, timeout=60000)
-    assert len(live.t) > 30
-    live._dirty = True
+    assert not live.stop_button.isEnabled()
+    live.start("ptz-sim:duration=20", realtime=True)
+    assert not live.start_button.isEnabled()
+    # the window's display clock drives the page (here: the test ticks it)
+    qtbot.waitUntil(lambda: (page.display_tick(), len(live.t) > 30)[1], timeout=60000)
     live.redraw()
     assert live.p_curves
     assert "pos err" in live.readout.text()
+    with qtbot.waitSignal(live.run.finished, timeout=10000):
+        live.stop_button.click()
+    assert live.readout.text().startswith("Stopped after")  # nothing stale after Stop
+    assert live.start_button.isEnabled()
 
 
 def pg_point(u: float, v: float):  # type: ignore[no-untyped-def]

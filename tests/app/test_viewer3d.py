@@ -69,16 +69,15 @@ def test_cloud_and_exports(store: KeyframeStore, tmp_path: Path) -> None:
     assert (tmp_path / "mesh.ply").exists()
 
 
-def test_live_frustum_follows_bridge_records(qtbot) -> None:  # type: ignore[no-untyped-def]
-    """Live-page tracking (``bridge.result_ready``) moves the live frustum, no store needed."""
-    from PySide6.QtCore import QObject, Signal
-
+def test_live_frustum_follows_the_runs_view_feed(qtbot) -> None:  # type: ignore[no-untyped-def]
+    """Every pose run moves the live frustum through the run's 3D-view sink (its own thread,
+    latest pose only), no store needed; a box tracker's run gets no feed."""
+    from app.run_owner import _outputs_pose
     from engine.frames import Frame
     from engine.loop import FrameRecord
+    from engine.pipeline import SinkLevel
+    from engine.sinks.view_feed import ViewFeedSink
     from engine.trackers.base import TrackResult, TrackState
-
-    class Bridge(QObject):
-        result_ready = Signal(object)
 
     intr = Intrinsics(fx=60.0, fy=60.0, cx=39.5, cy=29.5, width=80, height=60)
 
@@ -89,23 +88,29 @@ def test_live_frustum_follows_bridge_records(qtbot) -> None:  # type: ignore[no-
         result = TrackResult(TrackState.TRACKING, T_world_cam=T)
         return FrameRecord(seq, frame, result, "dense", 1.0, 30.0, 0)
 
-    bridge = Bridge()
+    class Owner:
+        publish = None
+
+        def set_view_publish(self, fn):  # type: ignore[no-untyped-def]
+            self.publish = fn
+
+    owner = Owner()
     v = StudioViewer(port=8094)
     try:
-        follower = v.follow(bridge, rate_hz=100.0)
-        bridge.result_ready.emit(record(0, 0.1))
+        v.follow(owner)
+        assert owner.publish is not None
+        sink = ViewFeedSink(owner.publish, rate_hz=100.0)
+        sink.open(None)  # type: ignore[arg-type]
+        sink.on_record(record(0, 0.1))
         qtbot.waitUntil(lambda: "/live_camera" in v.node_names(), timeout=3000)
         np.testing.assert_allclose(v.nodes["/live_camera"].position, [0.1, 0, 0])
         for i in range(1, 5):  # several records between two draws: the latest one is drawn
-            bridge.result_ready.emit(record(i, 0.1 * (i + 1)))
+            sink.on_record(record(i, 0.1 * (i + 1)))
         qtbot.waitUntil(lambda: abs(v.nodes["/live_camera"].position[0] - 0.5) < 1e-9)
-        drawn = follower.drawn
-        # a box tracker's record carries no camera pose: the frustum stays
-        box = TrackResult(TrackState.TRACKING, T_world_cam=np.eye(4), box_xywh=(1, 2, 3, 4))
-        bridge.result_ready.emit(FrameRecord(9, record(9, 0).frame, box, "kcf", 1.0, 30.0, 0))
-        qtbot.wait(50)
-        np.testing.assert_allclose(v.nodes["/live_camera"].position, [0.5, 0, 0])
-        assert follower.drawn == drawn
+        assert sink.health().level is SinkLevel.OK
+        sink.close()
     finally:
         v.stop()
-    bridge.result_ready.emit(record(10, 2.0))  # stopped: disconnected, nothing raises
+    assert owner.publish is None  # the viewer stopped following
+    assert _outputs_pose("dense")
+    assert not _outputs_pose("kcf")

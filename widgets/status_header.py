@@ -1,0 +1,187 @@
+"""The status header shown above every page: is the show healthy, readable across a room.
+
+A big state box (TRACKING green, DEGRADED amber, LOST and ERROR red, STOPPED grey,
+STARTING/INITIALIZING/RELOCALIZING blue), the tracker and source with the latest reason,
+frames/s against the target rate with a "falling behind" warning, end-to-end latency, one
+chip per output target (green only while packets leave without error), and the timecode
+slot. LOST, ERROR and a failing output flash the border (an alarm). The widget shows a
+:class:`HeaderState`; what it says is decided by the app (``app.status.header_state``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtWidgets import QFrame, QHBoxLayout, QLabel, QSizePolicy, QVBoxLayout, QWidget
+
+STATE_COLOURS = {
+    "TRACKING": "#1f9d55",
+    "DEGRADED": "#d99a00",
+    "LOST": "#d63031",
+    "ERROR": "#d63031",
+    "STOPPED": "#4a505b",
+    "STARTING": "#3d6fd6",
+    "INITIALIZING": "#3d6fd6",
+    "RELOCALIZING": "#3d6fd6",
+}
+LEVEL_COLOURS = {"ok": "#1f9d55", "waiting": "#8a6d1f", "alarm": "#d63031", "off": "#3a3f48"}
+ALARM_COLOUR = "#ff4d4f"
+FLASH_MS = 400
+
+
+@dataclass(frozen=True, slots=True)
+class HeaderTarget:
+    """One output chip: ``level`` is ok | waiting | alarm | off."""
+
+    name: str
+    level: str
+    text: str
+    tooltip: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class HeaderState:
+    state: str  # one of STATE_COLOURS
+    title: str  # tracker · source
+    message: str = ""  # why (LOST reason, engine error), or what runs
+    fps_text: str = "–"
+    behind: bool = False
+    latency_text: str = "–"
+    targets: tuple[HeaderTarget, ...] = ()
+    timecode: str = ""
+    alarm: bool = False
+
+
+IDLE = HeaderState("STOPPED", "no run", "press Start on a page to track")
+
+
+def _label(name: str, text: str = "", *, mono: bool = False) -> QLabel:
+    lab = QLabel(text)
+    lab.setObjectName(name)
+    if mono:
+        lab.setStyleSheet("font-family: monospace;")
+    return lab
+
+
+class StatusHeader(QFrame):
+    """A strip ~60 px high across the window (see the module docstring)."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setObjectName("status_header")
+        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
+        self._state = IDLE
+        self._flash_on = False
+        self.state_label = QLabel("STOPPED")
+        self.state_label.setObjectName("header_state")
+        self.state_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.state_label.setMinimumWidth(190)
+        self.state_label.setFixedHeight(46)
+        self.title_label = _label("header_title")
+        self.title_label.setStyleSheet("font-weight: bold; font-size: 12pt; color: #e6e9ee;")
+        self.message_label = _label("header_message")
+        self.message_label.setStyleSheet("color: #b9bec7;")
+        for lab in (self.title_label, self.message_label):
+            lab.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        mid = QVBoxLayout()
+        mid.setSpacing(0)
+        mid.addWidget(self.title_label)
+        mid.addWidget(self.message_label)
+        self.fps_label = _label("header_fps", "–", mono=True)
+        self.latency_label = _label("header_latency", "–", mono=True)
+        self.timecode_label = _label("header_timecode", "TC –", mono=True)
+        nums = QVBoxLayout()
+        nums.setSpacing(0)
+        nums.addWidget(self.fps_label)
+        nums.addWidget(self.latency_label)
+        self.targets_box = QHBoxLayout()
+        self.targets_box.setSpacing(4)
+        self.target_labels: list[QLabel] = []
+        row = QHBoxLayout(self)
+        row.setContentsMargins(8, 4, 8, 4)
+        row.setSpacing(12)
+        row.addWidget(self.state_label)
+        row.addLayout(mid, 1)
+        row.addLayout(nums)
+        row.addLayout(self.targets_box)
+        row.addWidget(self.timecode_label)
+        self.setFixedHeight(58)
+        self._flash = QTimer(self)
+        self._flash.setInterval(FLASH_MS)
+        self._flash.timeout.connect(self._toggle_flash)
+        self._apply_frame()
+        self.set_state(IDLE)
+
+    # ------------------------------------------------------------------ api
+    @property
+    def state(self) -> HeaderState:
+        return self._state
+
+    def set_state(self, st: HeaderState) -> None:
+        """Show ``st`` (cheap when nothing changed)."""
+        if st == self._state and self.state_label.text() == st.state:
+            return
+        self._state = st
+        colour = STATE_COLOURS.get(st.state, "#4a505b")
+        self.state_label.setText(st.state)
+        self.state_label.setStyleSheet(
+            f"background: {colour}; color: white; font-size: 20pt; font-weight: 800; "
+            "border-radius: 5px; padding: 0 10px;")
+        self.state_label.setAccessibleName(f"tracking state {st.state}")
+        self.title_label.setText(st.title)
+        self.title_label.setToolTip(st.title)
+        self.message_label.setText(st.message)
+        self.message_label.setToolTip(st.message)
+        fps_colour = "#ffb020" if st.behind else "#e6e9ee"
+        self.fps_label.setText(st.fps_text + ("  falling behind" if st.behind else ""))
+        self.fps_label.setStyleSheet(f"font-family: monospace; color: {fps_colour};"
+                                     + (" font-weight: bold;" if st.behind else ""))
+        self.latency_label.setText(st.latency_text)
+        self.timecode_label.setText(f"TC {st.timecode}" if st.timecode else "TC –")
+        self.timecode_label.setToolTip("timecode of the latest record" if st.timecode
+                                       else "no timecode on this source")
+        self._set_targets(st.targets)
+        if st.alarm and not self._flash.isActive():
+            self._flash.start()
+        elif not st.alarm and self._flash.isActive():
+            self._flash.stop()
+            self._flash_on = False
+        self._apply_frame()
+
+    def target_texts(self) -> list[str]:
+        return [lab.text() for lab in self.target_labels]
+
+    # ------------------------------------------------------------ internals
+    def _set_targets(self, targets: tuple[HeaderTarget, ...]) -> None:
+        while len(self.target_labels) < len(targets):
+            lab = QLabel()
+            lab.setObjectName("header_target")
+            self.targets_box.addWidget(lab)
+            self.target_labels.append(lab)
+        for i, lab in enumerate(self.target_labels):
+            if i >= len(targets):
+                lab.setVisible(False)
+                continue
+            t = targets[i]
+            lab.setVisible(True)
+            lab.setText(f"{t.name}\n{t.text}")
+            lab.setToolTip(t.tooltip or t.text)
+            lab.setProperty("level", t.level)
+            lab.setStyleSheet(
+                f"background: {LEVEL_COLOURS.get(t.level, '#3a3f48')}; color: white; "
+                "border-radius: 4px; padding: 2px 6px; font-size: 9pt;")
+
+    def _toggle_flash(self) -> None:
+        self._flash_on = not self._flash_on
+        self._apply_frame()
+
+    def _apply_frame(self) -> None:
+        border = ALARM_COLOUR if (self._state.alarm and self._flash_on) else "#2b2f37"
+        width = 3 if self._state.alarm else 1
+        self.setStyleSheet(f"QFrame#status_header {{ background: #1b1d22; border: {width}px "
+                           f"solid {border}; border-radius: 4px; }}")
+
+    @property
+    def flashing(self) -> bool:
+        return self._flash.isActive()
