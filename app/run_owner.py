@@ -78,7 +78,8 @@ class RunRequest:
 
     ``tracker_factory`` builds a special tracker instead of the registry's (e.g. the sweep's
     keyframe-adding dense tracker); ``sinks`` are extra sinks for this run only (e.g. the
-    sweep recorder); ``page`` names the page that started it (shown in the header).
+    sweep recorder); ``page`` names the page that started it (shown in the header);
+    ``record_dir`` records the run as a session folder (on the recorder's own thread).
     """
 
     source_spec: str
@@ -89,6 +90,7 @@ class RunRequest:
     page: str = "Live"
     tracker_factory: Callable[[], Any] | None = None
     sinks: tuple[Sink, ...] = ()
+    record_dir: str | None = None  # record a replayable session folder of this run
 
 
 def _outputs_pose(tracker: str) -> bool:
@@ -148,8 +150,12 @@ class RunThread(QThread):
             source = self._open_source(req.source_spec)
             tracker = (req.tracker_factory() if req.tracker_factory is not None
                        else self._create_tracker(req.tracker, req.params))
+            extra: list[Sink] = []
+            if req.record_dir:
+                source, rec_sink = self._recorder(source, tracker)
+                extra.append(rec_sink)
             pipe = Pipeline(
-                source, tracker, [*self._sinks, *req.sinks], realtime=req.realtime,
+                source, tracker, [*self._sinks, *req.sinks, *extra], realtime=req.realtime,
                 max_frames=req.max_frames, hold_on_fault=True, trace_size=TRACE_SIZE,
                 source_spec=req.source_spec, commands=self._commands,
             )
@@ -165,6 +171,30 @@ class RunThread(QThread):
                 except Exception as exc:
                     self.open_failed.emit(self.run_id, f"closing source: {one_line(exc)}")
             self.run_done.emit(self.run_id, status)
+
+
+    def _recorder(self, source: Source, tracker: Any) -> tuple[Source, Sink]:
+        """The session recorder for this run: frames normalised as replay reads them, the
+        writing on its own thread (the engine never waits for the disk)."""
+        from engine.session.recorder import RecorderSink, SessionRecorder
+        from engine.sinks.background import BackgroundSink
+
+        req = self.request
+        assert req.record_dir is not None
+        pose = next((s for s in self._sinks if isinstance(s, PoseOutputSink)), None)
+        recorder = SessionRecorder(
+            req.record_dir, source=source, source_spec=req.source_spec,
+            tracker_name=str(getattr(tracker, "name", req.tracker)),
+            tracker_params=getattr(tracker, "params", None),
+            outputs_config=None if pose is None else pose.config)
+
+        def stats() -> dict[str, Any] | None:
+            st = pose.stats() if pose is not None else None
+            return None if st is None else dict(st.to_json_dict())
+
+        sink = RecorderSink(recorder, outputs_config=None if pose is None else pose.config,
+                            outputs_stats=stats if pose is not None else None)
+        return recorder.normalizing(source), BackgroundSink(sink)
 
 
 class RunOwner(QObject):
@@ -438,6 +468,15 @@ class RunOwner(QObject):
                 self._log_event(ev)
         self.final_status = status
         self._active = None
+        req = self.request
+        if req is not None and req.record_dir and status is not None:
+            rec = next((h for h in status.sinks if h.name == "recorder"), None)
+            if rec is not None:
+                n = int(rec.counters.get("frames", 0))
+                if rec.level.is_bad:
+                    self._say("error", f"session {req.record_dir}: {rec.message}")
+                else:
+                    self._say("info", f"session {req.record_dir}: {n} frames recorded")
         if stopped:
             frames = status.frames if status is not None else 0
             self._say("info", f"run stopped after {frames} frames")

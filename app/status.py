@@ -69,6 +69,10 @@ def _targets(owner: Any, status: RunStatus | None) -> tuple[tuple[HeaderTarget, 
             if h.level.is_bad:
                 chips.append(HeaderTarget(h.name, "alarm", h.level.value, h.message))
                 bad = True
+            elif h.name == "recorder":
+                n = int(h.counters.get("frames", 0))
+                level = "ok" if h.level is SinkLevel.OK else "waiting"
+                chips.append(HeaderTarget("REC", level, f"{n} frames", h.message))
     return tuple(chips), bad
 
 

@@ -620,8 +620,7 @@ class Pipeline:
             self._lost_since = None
         elif prev is None or (state is not prev and state is TrackState.DEGRADED):
             why = f": {rec.result.message}" if rec.result.message else ""
-            what = "first frame" if prev is None else "tracking"
-            self._event("info", "tracker", f"{what} {state.value} at frame {index}{why}")
+            self._event("info", "tracker", f"{state.value} from frame {index}{why}")
 
     def _loop(self, should_stop: Callable[[], bool]) -> Iterator[FrameRecord]:
         period = (1.0 / self.info.nominal_fps

@@ -1,4 +1,5 @@
-"""``studiotrack bench NAME [--json]``: benchmarks discovered from ``engine.bench``."""
+"""``studiotrack bench NAME [--json]``: benchmarks discovered from ``engine.bench`` and, for
+those that need the operator window, ``app.benches``."""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ from engine.bench import available_benches
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     bsub = p.add_subparsers(dest="bench_name", metavar="NAME", required=True)
-    for name, spec in available_benches().items():
+    from app.benches import available_app_benches
+
+    for name, spec in {**available_benches(), **available_app_benches()}.items():
         bp = bsub.add_parser(name, help=spec.help)
         bp.add_argument("--json", action="store_true", help="end with one JSON line of results")
         spec.add_arguments(bp)

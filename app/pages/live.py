@@ -105,6 +105,12 @@ class LivePage(Page):
         self.realtime_check.setToolTip(
             "Pace recorded sources to their nominal frame rate (off: as fast as possible)"
         )
+        self.record_check = QCheckBox("Record session")
+        self.record_check.setObjectName("record_check")
+        self.record_check.setToolTip(
+            "Record the run as a replayable session folder (frames, poses, outputs sent) in "
+            "the project's sessions/ folder (or a temporary one without a project)"
+        )
         self.start_button = QPushButton("Start")
         self.start_button.setObjectName("start_button")
         self.start_button.setToolTip("Start tracking (F5)")
@@ -136,10 +142,11 @@ class LivePage(Page):
         run_grid.addWidget(tracker_label, 0, 0)
         run_grid.addWidget(self.tracker_box, 0, 1)
         run_grid.addWidget(self.realtime_check, 0, 2)
+        run_grid.addWidget(self.record_check, 1, 0, 1, 3)
         buttons = QHBoxLayout()
         buttons.addWidget(self.start_button, 1)
         buttons.addWidget(self.stop_button, 1)
-        run_grid.addLayout(buttons, 1, 0, 1, 3)
+        run_grid.addLayout(buttons, 2, 0, 1, 3)
         run_grid.setColumnStretch(1, 1)
 
         # ---- views
@@ -344,8 +351,12 @@ class LivePage(Page):
             self.source_picker.set_recent(self.ctx.recent_files())
         self._clear_live()
         self.status_light.set_state(None, "STARTING")
+        record_dir = self.session_dir() if self.record_check.isChecked() else None
+        if record_dir is not None:
+            self.ctx.log.info(f"recording the session to {record_dir}")
         self.run.start(spec, name, self.param_form.params,
-                       realtime=self.realtime_check.isChecked(), page="Live")
+                       realtime=self.realtime_check.isChecked(), page="Live",
+                       record_dir=record_dir)
         self._update_controls()
 
     @Slot()
@@ -354,6 +365,23 @@ class LivePage(Page):
             self.run.stop()
         self._update_controls()
 
+    def session_dir(self) -> str:
+        """A new session folder: ``<project>/sessions/<time>`` or a temporary one."""
+        import tempfile
+        from pathlib import Path
+
+        project = getattr(self.ctx, "project", None)
+        root = getattr(project, "folder", None) or getattr(project, "path", None)
+        base = (Path(root) / "sessions" if root is not None
+                else Path(tempfile.gettempdir()) / "studiotrack_sessions")
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        out = base / stamp
+        n = 1
+        while out.exists():
+            n += 1
+            out = base / f"{stamp}-{n}"
+        return str(out)
+
     def _update_controls(self) -> None:
         running = self.run.is_running
         self.start_button.setEnabled(not running)
@@ -361,6 +389,7 @@ class LivePage(Page):
         self.reset_button.setEnabled(running)
         self.tracker_box.setEnabled(not running)
         self.realtime_check.setEnabled(not running)
+        self.record_check.setEnabled(not running)
         self.source_picker.setEnabled(not running)
         req = self.run.request
         tip = "Stop tracking (Shift+F5)"

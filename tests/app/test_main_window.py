@@ -291,10 +291,10 @@ def test_loss_and_recovery_are_logged_once(qtbot, monkeypatch, ctx) -> None:  # 
     lines = [e.message for e in ctx.log.entries() if e.origin == "tracker"]
     # every state change once, in order (the fake reports DEGRADED on frames 0 and 10)
     assert lines == [
-        "first frame DEGRADED at frame 0",
+        "DEGRADED from frame 0",
         "tracking LOST at frame 3",
         "tracking recovered at frame 6 after 3 frames",
-        "tracking DEGRADED at frame 10",
+        "DEGRADED from frame 10",
     ]
 
 

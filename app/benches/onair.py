@@ -1,0 +1,341 @@
+"""``studiotrack bench onair``: the real operator window on the air path, with a GUI stall.
+
+Runs the operator window (offscreen) on the built-in studio with the real tracker in real
+time and the pose outputs on, blocks the GUI thread once in the middle for
+``--stall-gui-ms`` (default 2000), and measures what the render engine receives:
+
+- ``output_rate_hz``, ``packets_expected`` (the output rate over the measured span),
+  ``packets_sent`` (datagrams that arrived at the loopback receivers, or that the sender
+  sent when ``--freed/--opentrackio`` point elsewhere), ``max_send_gap_ms``,
+  ``send_gap_p99_ms`` (between consecutive packets of one target, the worst target);
+- ``latency_capture_to_send_ms{p50,p95,max}``: frame capture -> its packet on the wire;
+- ``gui_records_dropped`` (records the display skipped: the engine never waited),
+  ``gui_stall_ms`` (the stall as measured);
+- ``tracker_ms_window{median,p95}`` against ``tracker_ms_headless{median,p95}`` (the same
+  tracker on the same source headless, first, in the same process), their ``ratio``, and
+  ``fps_window`` against ``source_fps``.
+
+Goals (issue 11): no packet missing at the output rate across the stall, max gap <= 1.5
+periods, capture -> send p95 <= 15 ms beyond the configured delay (0 here), tracker time in
+the window within 1.3x headless, the source's rate sustained.
+"""
+
+from __future__ import annotations
+
+import argparse
+import socket
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from engine.bench import BenchSpec
+from engine.progress import log
+
+DEFAULT_SOURCE = "synthetic:frames=100000,presenter=1,path=rail"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--freed", default=None, metavar="HOST:PORT",
+                   help="FreeD target (default: a loopback receiver of the bench)")
+    p.add_argument("--opentrackio", default=None, metavar="HOST:PORT",
+                   help="OpenTrackIO target (default: a loopback receiver of the bench)")
+    p.add_argument("--seconds", type=float, default=20.0,
+                   help="measured run time after warm-up (default 20)")
+    p.add_argument("--rate", default=None, metavar="HZ",
+                   help="output rate (23.976 ... 60; default the source's)")
+    p.add_argument("--stall-gui-ms", type=float, default=2000.0,
+                   help="block the GUI thread once in the middle for this long (default 2000)")
+    p.add_argument("--tracker", default="dense", help="tracker (default dense)")
+    p.add_argument("--source", default=DEFAULT_SOURCE,
+                   help=f"source (default {DEFAULT_SOURCE})")
+    p.add_argument("--warmup", type=float, default=3.0,
+                   help="seconds of the window run before measuring (default 3)")
+    p.add_argument("--headless-frames", type=int, default=150,
+                   help="frames tracked headless first for the reference timing (default 150)")
+
+
+class _Receiver:
+    """Counts datagrams (arrival times) on a loopback port."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.sock.settimeout(0.05)
+        self.port = self.sock.getsockname()[1]
+        self.times: list[float] = []
+        self._stop = False
+        self._t = threading.Thread(target=self._run, daemon=True, name="onair-rx")
+        self._t.start()
+
+    def _run(self) -> None:
+        while not self._stop:
+            try:
+                self.sock.recv(65536)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            self.times.append(time.monotonic())
+
+    def close(self) -> None:
+        self._stop = True
+        self._t.join(1.0)
+        self.sock.close()
+
+
+def _stats(values: list[float]) -> dict[str, float | None]:
+    if not values:
+        return {"median": None, "p95": None}
+    a = np.asarray(values, dtype=np.float64)
+    return {"median": round(float(np.median(a)), 3), "p95": round(float(np.percentile(a, 95)), 3)}
+
+
+def headless_timing(source_spec: str, tracker: str, frames: int) -> list[float]:
+    """The tracker's time per frame headless (as ``studiotrack track``), first frame excluded."""
+    from engine.loop import run_tracking
+    from engine.sources import open_source
+    from engine.trackers import create_tracker
+
+    ms: list[float] = []
+    with open_source(source_spec) as src:
+        for rec in run_tracking(src, create_tracker(tracker), max_frames=frames):
+            if rec.seq > 0:
+                ms.append(rec.process_ms)
+    return ms
+
+
+@dataclass
+class OnAirResult:
+    """What one window run measured (also used by the test suite's short version)."""
+
+    rate_hz: float
+    t0: float
+    t1: float
+    rx_times: list[list[float]]
+    tracker_ms: list[float]
+    frames: int
+    dropped: int
+    stall_ms: float
+    stats: Any
+    state_counts: dict[str, int] = field(default_factory=dict)
+    alarms: list[str] = field(default_factory=list)
+
+
+def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
+               warmup_s: float = 3.0, rate: float | None = None,
+               targets: tuple[str | None, str | None] = (None, None),
+               settings: Any = None) -> OnAirResult:
+    """Drive the real window (offscreen) through warm-up, measurement and a GUI stall.
+
+    ``settings``: a QSettings for the window (default: a temporary ini file, so the bench
+    never touches the operator's saved geometry)."""
+    import tempfile
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    from app.context import AppContext
+    from app.main import create_application
+    from app.main_window import MainWindow
+    from app.run_owner import RunRequest
+    from engine.outputs.sender import OutputConfig, TargetSpec
+
+    create_application()
+    loop = QEventLoop()  # a local loop: the bench runs inside any Qt application (tests)
+    if settings is None:
+        from PySide6.QtCore import QSettings
+
+        tmp = tempfile.mkdtemp(prefix="studiotrack_onair_")
+        settings = QSettings(f"{tmp}/settings.ini", QSettings.Format.IniFormat)
+    ctx = AppContext(settings=settings)
+    window = MainWindow(ctx, restore_geometry=False)
+    window.resize(1600, 960)
+    window.show()
+    receivers: list[_Receiver] = []
+    tspecs: list[TargetSpec] = []
+    for proto, given in (("freed", targets[0]), ("opentrackio", targets[1])):
+        if given:
+            host, _, port = given.rpartition(":")
+            tspecs.append(TargetSpec(proto, host or "127.0.0.1", int(port)))
+        else:
+            rx = _Receiver()
+            receivers.append(rx)
+            tspecs.append(TargetSpec(proto, "127.0.0.1", rx.port))
+    ctx.run.apply_outputs(OutputConfig(targets=tuple(tspecs), rate_hz=rate))
+    ctx.run.set_outputs_enabled(True)
+    marks: dict[str, float] = {}
+    state: dict[str, Any] = {}
+
+    def start() -> None:
+        ctx.run.start(RunRequest(source, tracker, realtime=True, page="Live"))
+
+    def begin() -> None:
+        marks["t0"] = time.monotonic()
+        marks["t1"] = marks["t0"]
+        p = ctx.run.pipeline
+        state["cursor"] = p.trace.total if p is not None else 0
+        state["dropped0"] = p.mailbox.dropped if p is not None else 0
+        log(f"onair: measuring {seconds:.0f} s (GUI stall {stall_ms:.0f} ms in the middle)")
+
+    def stall() -> None:
+        a = time.monotonic()
+        time.sleep(stall_ms / 1000.0)  # the GUI thread is blocked: no event is processed
+        marks["stall_ms"] = (time.monotonic() - a) * 1000.0
+
+    def end() -> None:
+        marks["t1"] = time.monotonic()
+        try:
+            p = ctx.run.pipeline
+            if p is None:
+                raise RuntimeError(f"the run did not open: {ctx.run.last_error}")
+            samples, _, missed = p.trace.since(state["cursor"])
+            state["samples"] = samples
+            state["missed"] = missed
+            state["dropped"] = p.mailbox.dropped - state["dropped0"]
+            state["stats"] = ctx.run.output_stats()
+            state["alarms"] = [e.message for e in ctx.log.entries() if e.level >= 40]
+        except Exception as exc:
+            state["error"] = f"{type(exc).__name__}: {exc}"
+        finally:
+            ctx.run.stop()
+            window.close()
+            loop.quit()
+
+    def wait_for_frames() -> None:
+        # the measurement starts ``warmup_s`` after the first record (opening the source
+        # and compiling kernels can take seconds)
+        if "first" not in marks and ctx.run.frames_received > 0:
+            marks["first"] = time.monotonic()
+        if "first" in marks and time.monotonic() - marks["first"] >= warmup_s:
+            poll.stop()
+            begin()
+            QTimer.singleShot(round(1000 * seconds / 2), stall)
+            QTimer.singleShot(round(1000 * seconds), end)
+        elif time.monotonic() - marks["opened"] > 120.0:
+            poll.stop()
+            state["error"] = f"no frame within 120 s ({ctx.run.last_error})"
+            ctx.run.stop()
+            window.close()
+            loop.quit()
+
+    marks["opened"] = time.monotonic()
+    poll = QTimer()
+    poll.setInterval(50)
+    poll.timeout.connect(wait_for_frames)
+    QTimer.singleShot(0, start)
+    poll.start()
+    loop.exec()
+    window.deleteLater()
+    for rx in receivers:
+        rx.close()
+    if "error" in state:
+        from engine.errors import StudioTrackError
+
+        raise StudioTrackError(f"bench onair: {state['error']}")
+    samples = state.get("samples", [])
+    counts: dict[str, int] = {}
+    for s in samples:
+        counts[s.state.value] = counts.get(s.state.value, 0) + 1
+    st = state.get("stats")
+    return OnAirResult(
+        rate_hz=float(st.rate_hz) if st is not None else float("nan"),
+        t0=marks["t0"], t1=marks["t1"],
+        rx_times=[[t for t in rx.times if marks["t0"] <= t <= marks["t1"]] for rx in receivers],
+        tracker_ms=[s.process_ms for s in samples],
+        frames=len(samples) + int(state.get("missed", 0)),
+        dropped=int(state.get("dropped", 0)),
+        stall_ms=marks.get("stall_ms", 0.0),
+        stats=st,
+        state_counts=counts,
+        alarms=state.get("alarms", []),
+    )
+
+
+def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
+              stall_ms: float) -> dict[str, Any]:
+    span = res.t1 - res.t0
+    rate = res.rate_hz
+    gaps_all: list[float] = []
+    sent: list[int] = []
+    max_gap = p99 = 0.0
+    for times in res.rx_times:
+        sent.append(len(times))
+        if len(times) >= 2:
+            gaps = np.diff(np.asarray(times)) * 1000.0
+            gaps_all.extend(gaps.tolist())
+            max_gap = max(max_gap, float(gaps.max()))
+            p99 = max(p99, float(np.percentile(gaps, 99)))
+    st = res.stats
+    if not res.rx_times and st is not None:  # external targets: what the sender sent
+        sent = [t.samples_sent for t in st.targets]
+        max_gap = float(st.send_gap_ms[2])
+        p99 = float(st.send_gap_ms[1])
+    lat = st.capture_to_send_ms if st is not None else (float("nan"),) * 3
+    win = _stats(res.tracker_ms)
+    head = _stats(headless_ms)
+    ratio = (round(win["median"] / head["median"], 3)
+             if win["median"] is not None and head["median"] else None)
+    period_ms = 1000.0 / rate if rate == rate and rate > 0 else float("nan")
+    return {
+        "output_rate_hz": round(rate, 3),
+        "seconds": round(span, 3),
+        "packets_expected": int(round(span * rate)) if rate == rate else None,
+        "packets_sent": min(sent) if sent else 0,
+        "packets_sent_per_target": sent,
+        "max_send_gap_ms": round(max_gap, 3),
+        "send_gap_p99_ms": round(p99, 3),
+        "max_gap_periods": round(max_gap / period_ms, 3) if period_ms == period_ms else None,
+        "latency_capture_to_send_ms": {"p50": _r(lat[0]), "p95": _r(lat[1]), "max": _r(lat[2])},
+        "gui_records_dropped": res.dropped,
+        "gui_stall_ms": round(res.stall_ms, 1),
+        "gui_stall_asked_ms": stall_ms,
+        "tracker_ms_window": win,
+        "tracker_ms_headless": head,
+        "tracker_ratio_window_vs_headless": ratio,
+        "fps_window": round(res.frames / span, 3) if span > 0 else None,
+        "source_fps": source_fps,
+        "frames_window": res.frames,
+        "states": res.state_counts,
+        "held_slots": None if st is None else st.held_ticks,
+        "lost_slots": None if st is None else st.lost_ticks,
+        "missed_slots": None if st is None else st.missed_ticks,
+        "errors_logged": res.alarms[:5],
+    }
+
+
+def _r(x: float) -> float | None:
+    return round(float(x), 3) if x == x else None
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    import os
+
+    from engine.outputs.clock import parse_rate
+
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")  # the real window, offscreen
+    from engine.sources import open_source
+
+    rate = None if args.rate is None else parse_rate(args.rate)
+    with open_source(args.source) as src:
+        source_fps = float(src.nominal_fps)
+    log(f"onair: {args.tracker} headless on {args.source} ({args.headless_frames} frames)")
+    t = time.perf_counter()
+    headless = headless_timing(args.source, args.tracker, args.headless_frames)
+    log(f"onair: headless median {statistics.median(headless):.1f} ms "
+        f"({time.perf_counter() - t:.0f} s); the window next")
+    res = run_window(args.source, args.tracker, seconds=args.seconds,
+                     stall_ms=args.stall_gui_ms, warmup_s=args.warmup, rate=rate,
+                     targets=(args.freed, args.opentrackio))
+    out = summarize(res, headless, source_fps, args.stall_gui_ms)
+    log(f"onair: {out['packets_sent']}/{out['packets_expected']} packets, max gap "
+        f"{out['max_send_gap_ms']} ms, capture->send p95 "
+        f"{out['latency_capture_to_send_ms']['p95']} ms, window {out['fps_window']} fps")
+    return out
+
+
+BENCHES = (BenchSpec(name="onair", help="the operator window on air with a GUI stall: "
+                     "packets, gaps, latency, tracker time vs headless",
+                     add_arguments=add_arguments, run=run),)
