@@ -135,6 +135,7 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
     ``settings``: a QSettings for the window (default: a temporary ini file, so the bench
     never touches the operator's saved geometry)."""
     import tempfile
+
     from PySide6.QtCore import QEventLoop, QTimer
 
     from app.context import AppContext
@@ -282,7 +283,7 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
     return {
         "output_rate_hz": round(rate, 3),
         "seconds": round(span, 3),
-        "packets_expected": int(round(span * rate)) if rate == rate else None,
+        "packets_expected": round(span * rate) if rate == rate else None,
         "packets_sent": min(sent) if sent else 0,
         "packets_sent_per_target": sent,
         "max_send_gap_ms": round(max_gap, 3),
