@@ -188,10 +188,10 @@ def patch_histograms(image_bgr: NDArray[np.uint8],
     Patches without any pixel in the image are left out.
     """
     img = apply_gains(image_bgr, grey_world_gains(image_bgr)) if grey_world else image_bgr
-    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    hsv = u8(cv2.cvtColor(img, cv2.COLOR_BGR2HSV))
     out: list[tuple[str, F64]] = []
-    for name, xywh in patches:
-        x, y, w, h = (round(v) for v in xywh)
+    for name, rect in patches:
+        x, y, w, h = (round(v) for v in rect)
         c = direct_histogram(hsv, (x, y, max(w, 1), max(h, 1)), n_bins)
         if c.sum() > 0:
             out.append((name, c / c.sum()))
