@@ -39,7 +39,7 @@ class PresenterParams(Params):
     sigma_min_px: float = param(3.0, lo=0.0, hi=100.0, step=0.5,
                                 help="lower bound of the x/y prediction noise std (px): small "
                                 "targets still move whole pixels")
-    velocity_gain: float = param(0.75, lo=0.0, hi=1.0, step=0.05,
+    velocity_gain: float = param(0.5, lo=0.0, hi=1.0, step=0.05,
                                  help="drift of the prediction: this fraction of the estimate's "
                                  "smoothed velocity is added to eq. (1)'s random walk (0 = the "
                                  "paper's pure random walk)")
@@ -49,7 +49,7 @@ class PresenterParams(Params):
                             "at least 2x as tall as wide: a stride or arm swing widens it; a "
                             "head or face box keeps its aspect); off = always the model's fixed "
                             "aspect ratio")
-    fit_width_max_frac: float = param(2.2, lo=1.0, hi=4.0, step=0.1,
+    fit_width_max_frac: float = param(1.6, lo=1.0, hi=4.0, step=0.1,
                                       help="widest fitted output box, in model widths (a "
                                       "stride and swinging arms; a same-coloured neighbour "
                                       "or set piece beside the presenter is cut off here)")
@@ -73,7 +73,7 @@ class PresenterParams(Params):
     ring_margin_frac: float = param(0.25, lo=0.05, hi=1.0, step=0.05,
                                     help="width of that ring on each side, fraction of the "
                                     "box's width and height")
-    lambda_col: float = param(0.15, lo=0.001, hi=10.0, step=0.01,
+    lambda_col: float = param(0.1, lo=0.001, hi=10.0, step=0.01,
                               help="colour likelihood covariance lambda_col (eq. 3)")
     lambda_mot: float = param(2.0, lo=0.01, hi=100.0, step=0.1,
                               help="motion likelihood covariance lambda_mot (eq. 4)")
@@ -94,8 +94,9 @@ class PresenterParams(Params):
                                  help="contrast loss test: LOST while z > this (0.5 = half-way "
                                  "from the target's colour match to the background's)")
     loss_percent: float = param(0.1, lo=0.0, hi=100.0, step=0.01,
-                                help="loss when P(z_col|s) < Pmin = this % of Pref (with "
-                                "lambda_col 0.15: sum B^2 worse than the reference by 1.04)")
+                                help="likelihood loss test: loss when P(z_col|s) < Pmin = this "
+                                "% of Pref, i.e. sum B^2 worse than the reference by "
+                                "lambda_col x ln(100 / this)")
     pref_adapt_ratio: float = param(0.6, lo=0.0, hi=1.0, step=0.05,
                                     help="Pref adapts only while P >= this fraction of Pref")
     pref_adapt_rate: float = param(0.02, lo=0.0, hi=1.0, step=0.005,
@@ -110,7 +111,7 @@ class PresenterParams(Params):
                                      help="slow model update: per frame, the adapted patch "
                                      "histograms move this fraction towards the ones at the "
                                      "estimate (0 = the paper's fixed model)")
-    model_update_ratio: float = param(0.3, lo=0.0, hi=1.0, step=0.05,
+    model_update_ratio: float = param(0.7, lo=0.0, hi=1.0, step=0.05,
                                       help="update the model only while confidently on "
                                       "the target (guard against drift): contrast test z < "
                                       "this x loss_contrast; likelihood test P(z_col|s) >= "
