@@ -20,7 +20,17 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QImage, QKeyEvent, QMouseEvent, QPainter, QPen
+from PySide6.QtGui import (
+    QBrush,
+    QColor,
+    QFont,
+    QFontMetricsF,
+    QImage,
+    QKeyEvent,
+    QMouseEvent,
+    QPainter,
+    QPen,
+)
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
 XYWH = tuple[float, float, float, float]
@@ -272,7 +282,10 @@ class PatchCanvas(QWidget):
             p.setPen(QPen(colour, 2 if k == 0 else 1))
             r = self._wrect(box)
             p.drawRect(r)
-            p.drawText(r.topLeft() + QPointF(3, 12), label)
+            # the presenter's label above the box, patch labels inside: never on top of
+            # each other
+            self._label(p, r.topLeft() + (QPointF(0, -2) if k == 0 else QPointF(2, 2)),
+                        label, colour, above=k == 0)
         if self.crosshair is not None:
             c = self.to_widget(*self.crosshair)
             p.setPen(QPen(QColor("#ffd24c"), 2))
@@ -288,14 +301,15 @@ class PatchCanvas(QWidget):
                 p.setPen(pen)
                 r = self._wrect(self.main)
                 p.drawRect(r)
-                p.drawText(r.topLeft() + QPointF(3, -4), "main region")
+                self._label(p, r.topLeft() + QPointF(0, -2), "main region", MAIN_COLOUR,
+                            above=True)
                 self._handle(p, r, self.selected == -1 and self._drag is not None)
             for i, pr in enumerate(self.patches):
                 colour = QColor(PATCH_COLOURS[i % len(PATCH_COLOURS)])
                 p.setPen(QPen(colour, 3 if i == self.selected else 1.5))
                 r = self._wrect(pr.xywh)
                 p.drawRect(r)
-                p.drawText(r.topLeft() + QPointF(3, 12), pr.name)
+                self._label(p, r.topLeft() + QPointF(2, 2), pr.name, colour)
                 self._handle(p, r, i == self.selected)
         if self._rubber is not None:
             p.setPen(QPen(QColor("white"), 1, Qt.PenStyle.DotLine))
@@ -304,8 +318,29 @@ class PatchCanvas(QWidget):
             c = self.to_widget(x, y)
             p.setPen(QPen(QColor("#ff8c42"), 2))
             p.drawEllipse(c, 5, 5)
-            p.drawText(c + QPointF(7, -7), f"F{k + 1}")
+            self._label(p, c + QPointF(7, -7), f"F{k + 1}", QColor("#ff8c42"), above=True)
         p.end()
+
+    @staticmethod
+    def _label(p: QPainter, at: QPointF, text: str, colour: QColor, above: bool = False) -> None:
+        """Readable on any picture: bold text in the rectangle's colour on a dark chip
+        (``at``: its top-left corner, or bottom-left with ``above``)."""
+        font = QFont(p.font())
+        font.setBold(True)
+        font.setPointSizeF(max(font.pointSizeF(), 9.0))
+        p.save()
+        p.setFont(font)
+        fm = QFontMetricsF(font)
+        w, h = fm.horizontalAdvance(text) + 8.0, fm.height() + 2.0
+        top = at.y() - h if above else at.y()
+        chip = QRectF(at.x(), top, w, h)
+        p.setPen(Qt.PenStyle.NoPen)
+        p.setBrush(QColor(10, 12, 16, 200))
+        p.drawRoundedRect(chip, 3.0, 3.0)
+        p.setPen(colour.lighter(130))
+        p.drawText(chip.adjusted(4.0, 0.0, 0.0, 0.0),
+                   Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, text)
+        p.restore()
 
     @staticmethod
     def _handle(p: QPainter, r: QRectF, strong: bool) -> None:
