@@ -1,13 +1,27 @@
 """Numba kernels of the dense RGB-D tracker (Tykkälä 2014, Algorithm 1).
 
 Imported lazily (by :mod:`engine.dense.photometric` when a tracker is built) so that tracker
-discovery stays fast. ``cache=True`` keeps the compiled code between runs.
+discovery stays fast. ``cache=True`` keeps the compiled code between runs; every kernel is
+``nogil=True`` (it touches no Python object), so an engine thread running the tracker does not
+block the GUI thread.
 
 Conventions: a reference point ``P`` (metres, reference camera frame) is warped by
 ``T_cur_ref`` (the base transform T^ of eq. (1)) and projected with eq. (2)-(4) into
 full-resolution pixels ``(u0, v0)``; pyramid level L (0 = 320x240 for a 640x480 input) uses
 pixel-centre scaling ``u_L = (u0 + 0.5) * s_L - 0.5`` (sec. 4.6) with ``s_L = 2^-(L+1)``.
 Twists are ``x = (v, w)``, translation first (engine.geometry).
+
+Layout (for speed): point data is structure-of-arrays, ``P`` (3, n), ``J`` (6, n) per level,
+so that the projection and the normal-equation loops vectorise (SIMD); the image look-ups
+(bilinear intensity, nearest depth) are one scalar loop. One Gauss-Newton iteration is three
+passes over the points: project (vector), sample (scalar, fills the residual histogram),
+accumulate (vector).
+
+The median of eq. (9) is read from a histogram of the signed residuals (sec. 4.2 uses a
+64-bin histogram): bins are uniform in ``sign(e) sqrt(|e|)`` (fine near zero, where the median
+of a good fit lies; coarse for outliers), 2 x 1024 bins over |e| < 256 grey levels, linear
+inside a bin. From the one histogram come both the brightness offset (the median of e) and
+the Tukey scale (the median of |e - offset|).
 """
 
 from __future__ import annotations
@@ -20,10 +34,25 @@ from numba import njit
 # Tukey constants, eq. (9)-(10).
 TUKEY_C = 1.4826
 TUKEY_B = 4.6851
-N_HIST_BINS = 64  # sec. 4.2: 64-bin histogram median
+
+#: histogram bins per sign of the residual, and bins per sqrt(unit) (see the module docstring)
+HIST_NB = 1024
+HIST_K = 64.0
+#: metres -> histogram units of the geometric (point-to-plane) residual: 0.1 mm .. 6.5 m
+GEO_UNIT = 1e4
+
+#: what :func:`minimize` reports in its ``stats`` array (index by name)
+STATS = (
+    "median_abs_e", "valid_fraction", "inlier_fraction", "rms", "ok", "iterations",
+    "last_step", "brightness_offset", "brightness_gain", "median_abs_geo_m", "n_kept",
+)
+N_STATS = len(STATS)
 
 
-@njit(cache=True, inline="always")
+# ----------------------------------------------------------------------------- helpers
+
+
+@njit(cache=True, inline="always", nogil=True)
 def _bilinear(img: np.ndarray, u: float, v: float) -> float:
     x0 = math.floor(u)
     y0 = math.floor(v)
@@ -36,100 +65,91 @@ def _bilinear(img: np.ndarray, u: float, v: float) -> float:
     return (1.0 - ay) * ((1.0 - ax) * i00 + ax * i01) + ay * ((1.0 - ax) * i10 + ax * i11)
 
 
-@njit(cache=True, inline="always")
-def _project_full(
-    X: float, Y: float, Z: float, fx: float, fy: float, cx: float, cy: float, dist: np.ndarray
-) -> tuple[float, float]:
-    """Eq. (2)-(4): u = K D(N(p), alpha) at full resolution."""
-    xn = X / Z
-    yn = Y / Z
-    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
-    r2 = xn * xn + yn * yn
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
-    yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
-    return fx * xd + cx, fy * yd + cy
+@njit(cache=True, inline="always", nogil=True)
+def _hist_bin(x: float) -> int:
+    """Histogram bin of a signed value: uniform in sign(x) sqrt(|x|)."""
+    f = min(math.sqrt(abs(x)) * HIST_K, HIST_NB - 0.5)
+    b = int(f)
+    return HIST_NB + b if x >= 0.0 else HIST_NB - 1 - b
+
+
+@njit(cache=True, inline="always", nogil=True)
+def _cdf(cum: np.ndarray, hist: np.ndarray, x: float) -> float:
+    """Number of histogram samples below ``x`` (linear inside a bin)."""
+    f = math.copysign(math.sqrt(abs(x)) * HIST_K, x) + HIST_NB
+    if f <= 0.0:
+        return 0.0
+    if f >= 2 * HIST_NB:
+        return float(cum[2 * HIST_NB])
+    k = int(f)
+    return cum[k] + (f - k) * hist[k]
 
 
 @njit(cache=True, nogil=True)
-def histogram_median(a: np.ndarray, mask: np.ndarray, nbins: int) -> float:
-    """Approximate median of ``a[mask]`` (non-negative) with two ``nbins`` histograms.
-
-    Sec. 4.2: the median of eq. (9) from a 64-bin histogram (the GPU's histogram64); a second
-    64-bin histogram inside the median bin refines it to 1/4096 of the range.
-    """
-    n = 0
-    hi = 0.0
-    for i in range(a.shape[0]):
-        if mask[i]:
-            n += 1
-            if a[i] > hi:
-                hi = a[i]
-    return _histogram_median_known(a, mask, n, hi, nbins)
+def _cumulate(hist: np.ndarray, cum: np.ndarray) -> int:
+    """cum[k] = sum(hist[:k]); returns the total."""
+    s = 0
+    for k in range(2 * HIST_NB):
+        cum[k] = s
+        s += hist[k]
+    cum[2 * HIST_NB] = s
+    return s
 
 
 @njit(cache=True, nogil=True)
-def _histogram_median_known(
-    a: np.ndarray, mask: np.ndarray, n: int, hi: float, nbins: int
-) -> float:
-    """:func:`histogram_median` with the count ``n`` and maximum ``hi`` of ``a[mask]`` known."""
+def hist_median(cum: np.ndarray, hist: np.ndarray) -> float:
+    """Median of the signed values in the histogram (``cum`` from :func:`_cumulate`)."""
+    n = cum[2 * HIST_NB]
     if n == 0:
         return 0.0
-    if hi <= 0.0:
+    half = 0.5 * n
+    k = 0
+    while k < 2 * HIST_NB - 1 and cum[k + 1] < half:
+        k += 1
+    f = k + ((half - cum[k]) / hist[k] if hist[k] > 0 else 0.0) - HIST_NB
+    return math.copysign((f / HIST_K) ** 2, f)
+
+
+@njit(cache=True, nogil=True)
+def hist_median_abs(cum: np.ndarray, hist: np.ndarray, centre: float) -> float:
+    """Median of |x - centre| over the histogram of x (bisection on the symmetric band)."""
+    n = cum[2 * HIST_NB]
+    if n == 0:
         return 0.0
-    half = (n + 1) // 2  # rank of the (lower) median
+    half = 0.5 * n
     lo = 0.0
-    width = hi / nbins
-    below = 0
-    for _pass in range(2):
-        h = np.zeros(nbins, dtype=np.int64)
-        for i in range(a.shape[0]):
-            if mask[i]:
-                b = int((a[i] - lo) / width)
-                if b < 0:
-                    continue
-                if b >= nbins:
-                    if _pass == 0:
-                        b = nbins - 1
-                    else:
-                        continue
-                h[b] += 1
-        cum = below
-        k = nbins - 1
-        for j in range(nbins):
-            if cum + h[j] >= half:
-                k = j
-                break
-            cum += h[j]
-        below = cum
-        lo = lo + k * width
-        if _pass == 0:
-            width = width / nbins
+    hi = (HIST_NB / HIST_K) ** 2 + abs(centre)
+    for _ in range(40):
+        t = 0.5 * (lo + hi)
+        if _cdf(cum, hist, centre + t) - _cdf(cum, hist, centre - t) < half:
+            lo = t
         else:
-            return lo + 0.5 * width
-    return lo
+            hi = t
+    return 0.5 * (lo + hi)
 
 
-@njit(cache=True, inline="always")
-def _abs_and_keep(
-    r: np.ndarray, valid: np.ndarray, wz: np.ndarray, r_abs: np.ndarray, keep: np.ndarray
-) -> tuple[int, float]:
-    """|r| into ``r_abs``; ``keep`` = valid and depth weight > 0 (eq. 12).
+@njit(cache=True, nogil=True)
+def histogram_median(a: np.ndarray, mask: np.ndarray) -> float:
+    """Median of ``a[mask]`` through the residual histogram (tests, diagnostics)."""
+    hist = np.zeros(2 * HIST_NB, dtype=np.int64)
+    cum = np.zeros(2 * HIST_NB + 1, dtype=np.int64)
+    for i in range(a.shape[0]):
+        if mask[i]:
+            hist[_hist_bin(a[i])] += 1
+    _cumulate(hist, cum)
+    return hist_median(cum, hist)
 
-    Returns the kept count and the largest kept |r| (the histogram range of eq. 9).
-    """
-    n_keep = 0
-    hi = 0.0
-    for i in range(r.shape[0]):
-        a_i = abs(r[i])
-        r_abs[i] = a_i
-        k_i = valid[i] and wz[i] > 0.0
-        keep[i] = k_i
-        if k_i:
-            n_keep += 1
-            if a_i > hi:
-                hi = a_i
-    return n_keep, hi
+
+@njit(cache=True, nogil=True)
+def histogram_median_abs(a: np.ndarray, mask: np.ndarray, centre: float) -> float:
+    """Median of ``|a[mask] - centre|`` through the residual histogram."""
+    hist = np.zeros(2 * HIST_NB, dtype=np.int64)
+    cum = np.zeros(2 * HIST_NB + 1, dtype=np.int64)
+    for i in range(a.shape[0]):
+        if mask[i]:
+            hist[_hist_bin(a[i])] += 1
+    _cumulate(hist, cum)
+    return hist_median_abs(cum, hist, centre)
 
 
 @njit(cache=True, nogil=True)
@@ -177,86 +197,6 @@ def _se3_exp(x: np.ndarray) -> np.ndarray:
     return T
 
 
-@njit(cache=True, fastmath=True, nogil=True)
-def _accumulate(
-    Jl: np.ndarray, e: np.ndarray, e_abs: np.ndarray, wz: np.ndarray, keep: np.ndarray,
-    scale: float, wc: np.ndarray, H: np.ndarray, g: np.ndarray,
-) -> None:
-    """Tukey weights (eq. (9)-(10)) fused with the weighted normal equations of eq. (13):
-    H = J^T W J (upper triangle, mirrored), g = J^T W e (sec. 4.3)."""
-    h00 = h01 = h02 = h03 = h04 = h05 = 0.0
-    h11 = h12 = h13 = h14 = h15 = 0.0
-    h22 = h23 = h24 = h25 = 0.0
-    h33 = h34 = h35 = 0.0
-    h44 = h45 = 0.0
-    h55 = 0.0
-    g0 = g1 = g2 = g3 = g4 = g5 = 0.0
-    inv = 1.0 / (scale * TUKEY_B)
-    for i in range(e.shape[0]):
-        w = 0.0
-        if keep[i]:
-            u = e_abs[i] * inv  # u / b of eq. (9)-(10)
-            if u < 1.0:
-                t = 1.0 - u * u
-                w = t * t * wz[i]
-        wc[i] = w
-        if w == 0.0:
-            continue
-        j0 = Jl[i, 0]
-        j1 = Jl[i, 1]
-        j2 = Jl[i, 2]
-        j3 = Jl[i, 3]
-        j4 = Jl[i, 4]
-        j5 = Jl[i, 5]
-        we = w * e[i]
-        g0 += j0 * we
-        g1 += j1 * we
-        g2 += j2 * we
-        g3 += j3 * we
-        g4 += j4 * we
-        g5 += j5 * we
-        w0 = w * j0
-        w1 = w * j1
-        w2 = w * j2
-        w3 = w * j3
-        w4 = w * j4
-        h00 += w0 * j0
-        h01 += w0 * j1
-        h02 += w0 * j2
-        h03 += w0 * j3
-        h04 += w0 * j4
-        h05 += w0 * j5
-        h11 += w1 * j1
-        h12 += w1 * j2
-        h13 += w1 * j3
-        h14 += w1 * j4
-        h15 += w1 * j5
-        h22 += w2 * j2
-        h23 += w2 * j3
-        h24 += w2 * j4
-        h25 += w2 * j5
-        h33 += w3 * j3
-        h34 += w3 * j4
-        h35 += w3 * j5
-        h44 += w4 * j4
-        h45 += w4 * j5
-        h55 += w * j5 * j5
-    vals = (h00, h01, h02, h03, h04, h05, h11, h12, h13, h14, h15, h22, h23, h24, h25,
-            h33, h34, h35, h44, h45, h55)
-    k = 0
-    for a in range(6):
-        for b in range(a, 6):
-            H[a, b] = vals[k]
-            H[b, a] = vals[k]
-            k += 1
-    g[0] = g0
-    g[1] = g1
-    g[2] = g2
-    g[3] = g3
-    g[4] = g4
-    g[5] = g5
-
-
 @njit(cache=True, nogil=True)
 def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     """Solve H x = g for a 6x6 symmetric positive-definite H by Cholesky (sec. 4.3)."""
@@ -268,7 +208,7 @@ def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
             for k in range(j):
                 s -= L[i, k] * L[j, k]
             if i == j:
-                if s <= 1e-12:
+                if s <= 1e-12 * max(H[i, i], 1e-300):
                     return np.zeros(n), False
                 L[i, i] = math.sqrt(s)
             else:
@@ -288,93 +228,293 @@ def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
     return x, True
 
 
-@njit(cache=True, nogil=True)
-def evaluate(
-    P: np.ndarray,
-    cstar: np.ndarray,
-    img: np.ndarray,
-    depth: np.ndarray,
-    T: np.ndarray,
-    cam: np.ndarray,
-    dist: np.ndarray,
-    scale: float,
-    tau_m: float,
-    missing_depth_weight: float,
-    use_depth: bool,
-    e: np.ndarray,
-    wz: np.ndarray,
-    valid: np.ndarray,
-    uv: np.ndarray,
-) -> int:
-    """Residual of eq. (1) and depth weights of eq. (11)-(12) for every point at one level.
+# ---------------------------------------------------------------------- per-iteration passes
 
-    ``cam`` = (fx, fy, cx, cy) at full resolution; ``depth`` is the full-resolution depth
-    map (metres, 0 invalid) sampled at the nearest pixel (no resampling across edges).
-    Returns the number of valid (projected inside the image) points.
-    """
+
+@njit(cache=True, fastmath=True, nogil=True)
+def project(
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray,
+    u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, m: int,
+) -> None:
+    """Warp of eq. (2)-(4) for the first ``m`` points: full-resolution pixels ``(u0, v0)`` and
+    the depth ``Z`` in the current camera (a vectorised loop; Z <= 0 is caught by the
+    sampler). Whole arrays and a count rather than slices keep numba's contiguous layout."""
     fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
+    r10, r11, r12, t1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
+    r20, r21, r22, t2 = T[2, 0], T[2, 1], T[2, 2], T[2, 3]
+    Px = P[0]
+    Py = P[1]
+    Pz = P[2]
+    for i in range(m):
+        px = np.float64(Px[i])
+        py = np.float64(Py[i])
+        pz = np.float64(Pz[i])
+        X = r00 * px + r01 * py + r02 * pz + t0
+        Y = r10 * px + r11 * py + r12 * pz + t1
+        Zi = r20 * px + r21 * py + r22 * pz + t2
+        iz = 1.0 / max(Zi, 1e-3)
+        xn = X * iz
+        yn = Y * iz
+        r2 = xn * xn + yn * yn
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
+        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+        u0[i] = fx * xd + cx
+        v0[i] = fy * yd + cy
+        Z[i] = Zi
+
+
+@njit(cache=True, nogil=True)
+def sample(
+    u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, cstar: np.ndarray, img: np.ndarray,
+    depth: np.ndarray, scale: float, inv_tau2: float, missing_depth_weight: float,
+    use_depth: bool, e: np.ndarray, wz: np.ndarray, m: int,
+) -> int:
+    """Residual of eq. (1) and depth weight of eq. (11)-(12) at one level, for every point.
+
+    ``e = c* - I(w(P; T^))`` (inverse-compositional form) by bilinear sampling; the current
+    depth is read at the nearest full-resolution pixel (no resampling across edges). Points
+    outside the level image (or behind the camera) get ``e = wz = 0``. Returns the number
+    inside the image.
+    """
     h, w = img.shape
     hd, wd = depth.shape
+    wmax = w - 1.0
+    hmax = h - 1.0
     nvalid = 0
-    for i in range(P.shape[0]):
-        X = T[0, 0] * P[i, 0] + T[0, 1] * P[i, 1] + T[0, 2] * P[i, 2] + T[0, 3]
-        Y = T[1, 0] * P[i, 0] + T[1, 1] * P[i, 1] + T[1, 2] * P[i, 2] + T[1, 3]
-        Z = T[2, 0] * P[i, 0] + T[2, 1] * P[i, 1] + T[2, 2] * P[i, 2] + T[2, 3]
-        if Z <= 1e-3:
-            valid[i] = False
-            e[i] = 0.0
-            wz[i] = 0.0
-            uv[i, 0] = -1.0
-            uv[i, 1] = -1.0
+    for i in range(m):
+        e[i] = 0.0
+        wz[i] = 0.0
+        Zi = Z[i]
+        uL = (u0[i] + 0.5) * scale - 0.5
+        vL = (v0[i] + 0.5) * scale - 0.5
+        if not (Zi > 1e-3 and uL >= 0.0 and vL >= 0.0 and uL < wmax and vL < hmax):
             continue
-        u0, v0 = _project_full(X, Y, Z, fx, fy, cx, cy, dist)
-        uv[i, 0] = u0
-        uv[i, 1] = v0
-        uL = (u0 + 0.5) * scale - 0.5
-        vL = (v0 + 0.5) * scale - 0.5
-        if not (uL >= 0.0 and vL >= 0.0 and uL < w - 1.0 and vL < h - 1.0):
-            valid[i] = False
-            e[i] = 0.0
-            wz[i] = 0.0
-            continue
-        valid[i] = True
         nvalid += 1
-        # eq. (1) in inverse-compositional form: e = c*(0) - I(w(P; T^))
-        e[i] = cstar[i] - _bilinear(img, uL, vL)
+        x0 = int(uL)
+        y0 = int(vL)
+        ax = uL - x0
+        ay = vL - y0
+        i00 = img[y0, x0]
+        i01 = img[y0, x0 + 1]
+        i10 = img[y0 + 1, x0]
+        i11 = img[y0 + 1, x0 + 1]
+        top = i00 + ax * (i01 - i00)
+        bot = i10 + ax * (i11 - i10)
+        ei = cstar[i] - (top + ay * (bot - top))  # eq. (1), inverse compositional
+        wzi = 1.0
         if use_depth:
-            ui = int(u0 + 0.5)
-            vi = int(v0 + 0.5)
-            zc = 0.0
-            if ui >= 0 and vi >= 0 and ui < wd and vi < hd:
-                zc = depth[vi, ui]
+            ui = int(u0[i] + 0.5)
+            vi = int(v0[i] + 0.5)
+            zc = depth[vi, ui] if (ui < wd and vi < hd) else 0.0
             if zc > 0.0:
-                ez = zc - Z  # eq. (11)
-                t = 1.0 - ez * ez / (tau_m * tau_m)
-                wz[i] = t * t if t > 0.0 else 0.0  # eq. (12)
+                ez = zc - Zi  # eq. (11)
+                t = max(1.0 - ez * ez * inv_tau2, 0.0)
+                wzi = t * t  # eq. (12)
             else:
-                wz[i] = missing_depth_weight
-        else:
-            wz[i] = 1.0
+                wzi = missing_depth_weight
+        e[i] = ei
+        wz[i] = wzi
     return nvalid
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def histogram(
+    x: np.ndarray, w: np.ndarray, unit: float, bins: np.ndarray, hist: np.ndarray, m: int
+) -> int:
+    """Add ``x * unit`` of the first ``m`` points with ``w > 0`` to the residual histogram
+    (bin indices in a vectorised loop, then the counts); returns how many were added."""
+    for i in range(m):
+        v = x[i] * unit
+        f = min(math.sqrt(abs(v)) * HIST_K, HIST_NB - 0.5)
+        b = np.int32(f)
+        b = HIST_NB + b if v >= 0.0 else HIST_NB - 1 - b
+        bins[i] = b if w[i] > 0.0 else 2 * HIST_NB
+    cnt = 0
+    for i in range(m):
+        b = bins[i]
+        if b < 2 * HIST_NB:
+            hist[b] += 1
+            cnt += 1
+    return cnt
+
+
+@njit(cache=True, nogil=True)
+def sample_geometric(
+    u0: np.ndarray, v0: np.ndarray, wz: np.ndarray, P: np.ndarray, N: np.ndarray,
+    depth: np.ndarray, rays: np.ndarray, M: np.ndarray, rg: np.ndarray, wg: np.ndarray,
+    m: int,
+) -> int:
+    """Point-to-plane residual ``r = n . (M Q - P)`` in the reference frame, Q the current
+    depth point at the nearest full-resolution pixel of the warped point (projective
+    association, as ICP), ``M = T^-1 T_color_depth``. ``wg`` is 1 where a residual exists
+    (point inside, normal known, depth measured, kept by eq. (12)), else 0. Returns the number
+    of residuals."""
+    hd, wd = depth.shape
+    R00, R01, R02, t0 = M[0, 0], M[0, 1], M[0, 2], M[0, 3]
+    R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
+    R20, R21, R22, t2 = M[2, 0], M[2, 1], M[2, 2], M[2, 3]
+    cnt = 0
+    for i in range(m):
+        rg[i] = 0.0
+        wg[i] = 0.0
+        if not wz[i] > 0.0:
+            continue
+        nx = N[0, i]
+        ny = N[1, i]
+        nz = N[2, i]
+        if nx == 0.0 and ny == 0.0 and nz == 0.0:
+            continue
+        ui = int(u0[i] + 0.5)
+        vi = int(v0[i] + 0.5)
+        if ui < 0 or vi < 0 or ui >= wd or vi >= hd:
+            continue
+        z = depth[vi, ui]
+        if not z > 0.0:
+            continue
+        X = rays[vi, ui, 0] * z
+        Y = rays[vi, ui, 1] * z
+        qx = R00 * X + R01 * Y + R02 * z + t0
+        qy = R10 * X + R11 * Y + R12 * z + t1
+        qz = R20 * X + R21 * Y + R22 * z + t2
+        r = nx * (qx - P[0, i]) + ny * (qy - P[1, i]) + nz * (qz - P[2, i])
+        rg[i] = r
+        wg[i] = 1.0
+        cnt += 1
+    return cnt
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def accumulate(
+    J: np.ndarray, e: np.ndarray, cs: np.ndarray, wz: np.ndarray, a: float, b: float,
+    beta: float, inv: float, out: np.ndarray, m: int,
+) -> None:
+    """Tukey weights (eq. (9)-(10)) fused with the weighted normal equations of eq. (13):
+    ``out[:21]`` = upper triangle of J^T W J, ``out[21:]`` = J^T W r (sec. 4.3), with the
+    residual ``r = a e + b c* - beta`` (brightness model; a = 1, b = 0: offset only),
+    ``W = w_c w_z`` and ``inv = 1 / (c median b)``, over the first ``m`` points.
+    Branch-free, so it vectorises."""
+    j0 = J[0]
+    j1 = J[1]
+    j2 = J[2]
+    j3 = J[3]
+    j4 = J[4]
+    j5 = J[5]
+    h00 = h01 = h02 = h03 = h04 = h05 = 0.0
+    h11 = h12 = h13 = h14 = h15 = 0.0
+    h22 = h23 = h24 = h25 = 0.0
+    h33 = h34 = h35 = 0.0
+    h44 = h45 = 0.0
+    h55 = 0.0
+    g0 = g1 = g2 = g3 = g4 = g5 = 0.0
+    for i in range(m):
+        r = a * e[i] + b * cs[i] - beta
+        u = r * inv  # u / b of eq. (9)-(10)
+        t = max(1.0 - u * u, 0.0)
+        w = t * t * wz[i]
+        a0 = np.float64(j0[i])
+        a1 = np.float64(j1[i])
+        a2 = np.float64(j2[i])
+        a3 = np.float64(j3[i])
+        a4 = np.float64(j4[i])
+        a5 = np.float64(j5[i])
+        wr = w * r
+        g0 += a0 * wr
+        g1 += a1 * wr
+        g2 += a2 * wr
+        g3 += a3 * wr
+        g4 += a4 * wr
+        g5 += a5 * wr
+        b0 = w * a0
+        b1 = w * a1
+        b2 = w * a2
+        b3 = w * a3
+        b4 = w * a4
+        h00 += b0 * a0
+        h01 += b0 * a1
+        h02 += b0 * a2
+        h03 += b0 * a3
+        h04 += b0 * a4
+        h05 += b0 * a5
+        h11 += b1 * a1
+        h12 += b1 * a2
+        h13 += b1 * a3
+        h14 += b1 * a4
+        h15 += b1 * a5
+        h22 += b2 * a2
+        h23 += b2 * a3
+        h24 += b2 * a4
+        h25 += b2 * a5
+        h33 += b3 * a3
+        h34 += b3 * a4
+        h35 += b3 * a5
+        h44 += b4 * a4
+        h45 += b4 * a5
+        h55 += w * a5 * a5
+    out[0] = h00
+    out[1] = h01
+    out[2] = h02
+    out[3] = h03
+    out[4] = h04
+    out[5] = h05
+    out[6] = h11
+    out[7] = h12
+    out[8] = h13
+    out[9] = h14
+    out[10] = h15
+    out[11] = h22
+    out[12] = h23
+    out[13] = h24
+    out[14] = h25
+    out[15] = h33
+    out[16] = h34
+    out[17] = h35
+    out[18] = h44
+    out[19] = h45
+    out[20] = h55
+    out[21] = g0
+    out[22] = g1
+    out[23] = g2
+    out[24] = g3
+    out[25] = g4
+    out[26] = g5
+
+
+@njit(cache=True, nogil=True)
+def _unpack(acc: np.ndarray, H: np.ndarray, g: np.ndarray, s: float, add: bool) -> None:
+    """H, g (+)= s * (normal equations packed by :func:`accumulate`)."""
+    k = 0
+    for a in range(6):
+        for b in range(a, 6):
+            v = s * acc[k]
+            if add:
+                H[a, b] += v
+                if b != a:
+                    H[b, a] += v
+            else:
+                H[a, b] = v
+                H[b, a] = v
+            k += 1
+    for a in range(6):
+        if add:
+            g[a] += s * acc[21 + a]
+        else:
+            g[a] = s * acc[21 + a]
 
 
 @njit(cache=True, nogil=True)
 def _fit_gain(
-    cs: np.ndarray, e: np.ndarray, valid: np.ndarray, wz: np.ndarray, beta0: float,
-    tmp: np.ndarray,
+    cs: np.ndarray, e: np.ndarray, wz: np.ndarray, beta0: float, scale0: float, m: int
 ) -> tuple[float, float]:
     """Robust affine brightness model c* = alpha I + beta (auto exposure changes gain and
-    offset): Tukey-weighted least squares around the median offset ``beta0``."""
-    cnt = 0
-    for i in range(e.shape[0]):
-        if valid[i] and wz[i] > 0.0:
-            tmp[cnt] = abs(e[i] - beta0)
-            cnt += 1
-    med = np.median(tmp[:cnt])
-    inv = 1.0 / (TUKEY_C * max(med, 1e-3) * TUKEY_B)
+    offset): Tukey-weighted least squares around the median offset ``beta0`` with the robust
+    scale ``scale0`` of e - beta0."""
+    inv = 1.0 / (TUKEY_C * max(scale0, 1e-3) * TUKEY_B)
     sw = swx = swy = swxx = swxy = 0.0
-    for i in range(e.shape[0]):
-        if not (valid[i] and wz[i] > 0.0):
+    for i in range(m):
+        if not wz[i] > 0.0:
             continue
         u = abs(e[i] - beta0) * inv
         if u >= 1.0:
@@ -398,57 +538,40 @@ def _fit_gain(
 
 
 @njit(cache=True, nogil=True)
-def evaluate_geometric(
-    P: np.ndarray,
-    N: np.ndarray,
-    depth: np.ndarray,
-    rays: np.ndarray,
-    T: np.ndarray,
-    T_cd: np.ndarray,
-    valid: np.ndarray,
-    uv: np.ndarray,
-    r: np.ndarray,
-    gvalid: np.ndarray,
-) -> int:
-    """Point-to-plane residual r = n . (T^-1 Q - P) in the reference frame, Q the current
-    depth point at the nearest full-resolution pixel of the warped point (projective
-    association, as ICP). Returns the number of points with a residual."""
-    hd, wd = depth.shape
-    # M = T^-1 T_cd: current depth-camera points (depth instant) into the reference frame
+def _inverse(T: np.ndarray) -> np.ndarray:
     Ti = np.eye(4)
     for a in range(3):
         for b in range(3):
             Ti[a, b] = T[b, a]
     for a in range(3):
         Ti[a, 3] = -(T[0, a] * T[0, 3] + T[1, a] * T[1, 3] + T[2, a] * T[2, 3])
-    M = Ti @ T_cd
-    R00, R01, R02, t0 = M[0, 0], M[0, 1], M[0, 2], M[0, 3]
-    R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
-    R20, R21, R22, t2 = M[2, 0], M[2, 1], M[2, 2], M[2, 3]
-    cnt = 0
-    for i in range(P.shape[0]):
-        gvalid[i] = False
-        r[i] = 0.0
-        if not valid[i]:
-            continue
-        if N[i, 0] == 0.0 and N[i, 1] == 0.0 and N[i, 2] == 0.0:
-            continue
-        ui = int(uv[i, 0] + 0.5)
-        vi = int(uv[i, 1] + 0.5)
-        if ui < 0 or vi < 0 or ui >= wd or vi >= hd:
-            continue
-        z = depth[vi, ui]
-        if not z > 0.0:
-            continue
-        X = rays[vi, ui, 0] * z
-        Y = rays[vi, ui, 1] * z
-        qx = R00 * X + R01 * Y + R02 * z + t0
-        qy = R10 * X + R11 * Y + R12 * z + t1
-        qz = R20 * X + R21 * Y + R22 * z + t2
-        r[i] = N[i, 0] * (qx - P[i, 0]) + N[i, 1] * (qy - P[i, 1]) + N[i, 2] * (qz - P[i, 2])
-        gvalid[i] = True
-        cnt += 1
-    return cnt
+    return Ti
+
+
+@njit(cache=True, nogil=True)
+def _pixel_step(T: np.ndarray, dT: np.ndarray, fpx: float, z_typ: float) -> float:
+    """Image motion (pixels, focal length ``fpx``) of the update ``T -> T dT``: the largest
+    displacement of a 3x3 grid of points at depth ``z_typ`` spanning the view (pinhole)."""
+    M = T @ dT @ _inverse(T)  # current-camera points before -> after the update
+    worst = 0.0
+    for gx in range(3):
+        for gy in range(3):
+            xn = 0.5 * (gx - 1)
+            yn = 0.4 * (gy - 1)
+            X = xn * z_typ
+            Y = yn * z_typ
+            Xq = M[0, 0] * X + M[0, 1] * Y + M[0, 2] * z_typ + M[0, 3]
+            Yq = M[1, 0] * X + M[1, 1] * Y + M[1, 2] * z_typ + M[1, 3]
+            Zq = M[2, 0] * X + M[2, 1] * Y + M[2, 2] * z_typ + M[2, 3]
+            if Zq <= 1e-6:
+                return np.inf
+            du = Xq / Zq - xn
+            dv = Yq / Zq - yn
+            worst = max(worst, math.sqrt(du * du + dv * dv))
+    return fpx * worst
+
+
+# ---------------------------------------------------------------------------- Algorithm 1
 
 
 @njit(cache=True, nogil=True)
@@ -464,121 +587,147 @@ def minimize(
     dist: np.ndarray,
     scales: np.ndarray,
     iters: np.ndarray,
+    level_n: np.ndarray,
     T0: np.ndarray,
     tau_m: float,
     missing_depth_weight: float,
     use_depth: bool,
     min_median: float,
     brightness_offset: bool,
-    w_out: np.ndarray,
-    uv_out: np.ndarray,
-    e_out: np.ndarray,
+    brightness_gain: bool,
     N: np.ndarray,
     Jg: np.ndarray,
     rays: np.ndarray,
     geo_weight: float,
     min_geo_scale: float,
     T_cd: np.ndarray,
-    brightness_gain: bool,
-    step_tol: float,
+    stop_px: float,
+    z_typ: float,
+    w_out: np.ndarray,
+    uv_out: np.ndarray,
+    e_out: np.ndarray,
+    steps_out: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Algorithm 1: coarse-to-fine inverse-compositional Gauss-Newton.
 
-    ``cstar`` (3, n) and ``J`` (3, n, 6) are the reference intensities and the Jacobian of
-    eq. (6) per level, computed once per reference. ``iters`` are per level 0..2 (fine to
-    coarse); levels run 2 -> 0. Returns ``(T_cur_ref, stats)`` with stats =
-    (median |e|, valid fraction, inlier fraction, weighted RMS, ok, iterations, step norm,
-    brightness offset, brightness gain). Options beyond the paper: ``brightness_gain``
-    (affine model), ``step_tol`` (stop a level when |x| falls below it), ``geo_weight`` > 0
-    adds the point-to-plane residual of :func:`evaluate_geometric` (normals ``N``, Jacobian
-    ``Jg``, full-resolution rays, ``T_cd`` moving the current depth to the colour instant),
-    each residual scaled by its own robust (Tukey) scale.
+    ``P`` (3, n), ``cstar`` (3, n) and ``J`` (3, 6, n) are the reference points, intensities
+    and the Jacobian of eq. (6) per level, computed once per reference. ``iters`` are per
+    level 0..2 (fine to coarse); levels run 2 -> 0. Level L uses the first ``level_n[L]``
+    points (all of them in the paper; fewer at the coarse levels is an option, the points are
+    stored so that any prefix is spread over the image). Returns ``(T_cur_ref, stats)``, stats
+    as named in :data:`STATS`; ``w_out`` (W of eq. (13)), ``uv_out`` (full-resolution warped
+    pixels) and ``e_out`` (residual) are those of the last evaluation; ``steps_out[k]`` the
+    pixel size of the k-th update.
+
+    Options beyond the paper: ``brightness_offset`` (remove the median residual once per
+    level), ``brightness_gain`` (affine model), ``stop_px`` > 0 (stop a level when an update
+    moves the image by less than this many pixels of that level; the counts become caps),
+    ``geo_weight`` > 0 adds the point-to-plane residual of :func:`sample_geometric` (normals
+    ``N`` (3, n), Jacobian ``Jg`` (6, n), full-resolution rays, ``T_cd`` moving the current
+    depth to the colour instant), each residual in units of its own robust (Tukey) scale.
     """
-    n = P.shape[0]
+    n = P.shape[1]
     T = T0.copy()
+    u0 = np.zeros(n)
+    v0 = np.zeros(n)
+    Z = np.zeros(n)
     e = np.zeros(n)
-    e_abs = np.zeros(n)
     wz = np.zeros(n)
-    wc = np.zeros(n)
-    valid = np.zeros(n, dtype=np.bool_)
-    keep = np.zeros(n, dtype=np.bool_)
-    tmp = np.zeros(n)
-    beta = 0.0
-    alpha = 1.0
-    stats = np.zeros(9)
-    ok = True
-    total_iters = 0
-    med = 0.0
-    nvalid = 0
-    last_step = 0.0
+    hist = np.zeros(2 * HIST_NB, dtype=np.int64)
+    cum = np.zeros(2 * HIST_NB + 1, dtype=np.int64)
+    bins = np.zeros(n, dtype=np.int32)
+    acc = np.zeros(27)
     H = np.zeros((6, 6))
     g = np.zeros(6)
-    Hg = np.zeros((6, 6))
-    gg = np.zeros(6)
-    rg = np.zeros(n)
-    rg_abs = np.zeros(n)
-    gvalid = np.zeros(n, dtype=np.bool_)
-    gkeep = np.zeros(n, dtype=np.bool_)
-    wg = np.zeros(n)
-    use_geo = geo_weight > 0.0 and N.shape[0] == n
+    use_geo = geo_weight > 0.0 and N.shape[1] == n
+    ng = n if use_geo else 1
+    rg = np.zeros(ng)
+    wg = np.zeros(ng)
+    zeros_g = np.zeros(ng)
+    inv_tau2 = 1.0 / (tau_m * tau_m)
+    beta = 0.0
+    alpha = 1.0
+    med = 0.0
+    medg = 0.0
+    scale = 1.0
+    nvalid = 0
+    nkeep = 0
+    ok = True
+    total_iters = 0
+    last_step = 0.0
+    last_lev = 0
+    m_last = n
+    stats = np.zeros(N_STATS)
     for lev in range(2, -1, -1):
         img = img0 if lev == 0 else (img1 if lev == 1 else img2)
-        for _it in range(iters[lev]):
-            nvalid = evaluate(
-                P, cstar[lev], img, depth, T, cam, dist, scales[lev], tau_m,
-                missing_depth_weight, use_depth, e, wz, valid, uv_out,
+        m = min(n, max(int(level_n[lev]), 12))
+        Jl = J[lev]
+        csl = cstar[lev]
+        for it in range(iters[lev]):
+            project(P, T, cam, dist, u0, v0, Z, m)
+            nvalid = sample(
+                u0, v0, Z, csl, img, depth, scales[lev], inv_tau2, missing_depth_weight,
+                use_depth, e, wz, m,
             )
-            if nvalid < 12:
+            hist[:] = 0
+            histogram(e, wz, 1.0, bins, hist, m)
+            last_lev = lev
+            m_last = m
+            nkeep = _cumulate(hist, cum)
+            if nvalid < 12 or nkeep < 12:
                 ok = False
                 break
-            if brightness_offset:
-                # global brightness change (auto exposure): remove the median signed residual
-                # of the points the depth test keeps, estimated once per level (an extension;
-                # the paper assumes fixed studio lighting)
-                if _it == 0:
-                    cnt = 0
-                    for i in range(n):
-                        if valid[i] and wz[i] > 0.0:
-                            tmp[cnt] = e[i]
-                            cnt += 1
-                    beta = np.median(tmp[:cnt]) if cnt >= 12 else 0.0
-                    alpha = 1.0
-                    if brightness_gain and cnt >= 12:
-                        alpha, beta = _fit_gain(cstar[lev], e, valid, wz, beta, tmp)
-                if alpha != 1.0:
-                    cs = cstar[lev]
-                    for i in range(n):
-                        e[i] = cs[i] - alpha * (cs[i] - e[i]) - beta
-                else:
-                    for i in range(n):
-                        e[i] -= beta
-            # The median of eq. (9) over the points the depth test keeps: a presenter
-            # rejected by eq. (12) must not inflate the Tukey scale for the background.
-            nkeep, hi = _abs_and_keep(e, valid, wz, e_abs, keep)
-            if nkeep < 12:
-                ok = False
-                break
-            med = _histogram_median_known(e_abs, keep, nkeep, hi, N_HIST_BINS)
+            if brightness_offset and it == 0:
+                # global brightness change (auto exposure): the median signed residual of the
+                # points the depth test keeps, once per level (an extension; the paper
+                # assumes fixed studio lighting)
+                beta = hist_median(cum, hist)
+                alpha = 1.0
+                if brightness_gain:
+                    s0 = hist_median_abs(cum, hist, beta)
+                    alpha, beta = _fit_gain(csl, e, wz, beta, s0, m)
+            if alpha != 1.0:
+                # r = alpha e + (1 - alpha) c* - beta has its own median: histogram it
+                hist[:] = 0
+                for i in range(m):
+                    if wz[i] > 0.0:
+                        hist[_hist_bin(alpha * e[i] + (1.0 - alpha) * csl[i] - beta)] += 1
+                _cumulate(hist, cum)
+                med = hist_median_abs(cum, hist, 0.0)
+            else:
+                # the median of eq. (9) over the points the depth test keeps: a presenter
+                # rejected by eq. (12) must not inflate the Tukey scale for the background
+                med = hist_median_abs(cum, hist, beta)
             # noise floor of the scale: on (near) noise-free images a tiny median would make
             # the informative high-gradient points outliers after sub-pixel misalignment
             scale = TUKEY_C * max(med, min_median, 1e-6)
-            _accumulate(J[lev], e, e_abs, wz, keep, scale, wc, H, g)
+            accumulate(
+                Jl, e, csl, wz, alpha, 1.0 - alpha, beta, 1.0 / (scale * TUKEY_B), acc, m
+            )
+            _unpack(acc, H, g, 1.0, False)
             if use_geo:
                 # combined photometric + point-to-plane (ICP-like) cost, each residual in
                 # units of its own robust scale (an extension; the paper is photometric)
-                evaluate_geometric(P, N, depth, rays, T, T_cd, valid, uv_out, rg, gvalid)
-                ngk, hig = _abs_and_keep(rg, gvalid, wz, rg_abs, gkeep)
+                M = _inverse(T) @ T_cd
+                ngk = sample_geometric(u0, v0, wz, P, N, depth, rays, M, rg, wg, m)
+                hist[:] = 0
+                histogram(rg, wg, GEO_UNIT, bins, hist, m)
                 if ngk >= 12:
-                    medg = _histogram_median_known(rg_abs, gkeep, ngk, hig, N_HIST_BINS)
+                    _cumulate(hist, cum)
+                    medg = hist_median_abs(cum, hist, 0.0) / GEO_UNIT
                     scale_g = TUKEY_C * max(medg, min_geo_scale, 1e-9)
-                    _accumulate(Jg, rg, rg_abs, wz, gkeep, scale_g, wg, Hg, gg)
-                    a_c = 1.0 / (scale * scale)
-                    a_g = geo_weight / (scale_g * scale_g)
+                    accumulate(
+                        Jg, rg, zeros_g, wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc, m
+                    )
+                    s_c = 1.0 / (scale * scale)
                     for a in range(6):
-                        g[a] = a_c * g[a] + a_g * gg[a]
+                        g[a] *= s_c
                         for b in range(6):
-                            H[a, b] = a_c * H[a, b] + a_g * Hg[a, b]
-            x, solved = _cholesky_solve6(H, -g)
+                            H[a, b] *= s_c
+                    _unpack(acc, H, g, geo_weight / (scale_g * scale_g), True)
+            for a in range(6):
+                g[a] = -g[a]
+            x, solved = _cholesky_solve6(H, g)
             if not solved:
                 ok = False
                 break
@@ -587,35 +736,57 @@ def minimize(
                     ok = False
             if not ok:
                 break
-            T = T @ _se3_exp(x)  # T^ <- T^ e^{A(x)}, sec. 3.1
-            last_step = math.sqrt(np.sum(x * x))
+            dT = _se3_exp(x)
+            step = _pixel_step(T, dT, cam[0] * scales[lev], z_typ)
+            T = T @ dT  # T^ <- T^ e^{A(x)}, sec. 3.1
+            if total_iters < steps_out.shape[0]:
+                steps_out[total_iters] = step
+            last_step = step
             total_iters += 1
-            if last_step < step_tol:
+            if step < stop_px:
                 break  # converged at this level: the counts are a cap
         if not ok:
             break
+    # W = w_c w_z (eq. (13)) and the residuals of the last evaluation, full resolution pixels
+    inv = 1.0 / (scale * TUKEY_B)
     sw = 0.0
     swe = 0.0
     ninl = 0
     for i in range(n):
-        wi = wc[i] if keep[i] else 0.0  # W = w_c w_z (eq. (13)), from _accumulate
+        if i >= m_last:
+            w_out[i] = 0.0
+            e_out[i] = 0.0
+            uv_out[i, 0] = -1.0
+            uv_out[i, 1] = -1.0
+            continue
+        r = alpha * e[i] + (1.0 - alpha) * cstar[last_lev, i] - beta
+        u = r * inv
+        t = max(1.0 - u * u, 0.0)
+        wi = t * t * wz[i]
         w_out[i] = wi
-        e_out[i] = e[i]
+        e_out[i] = r if wz[i] > 0.0 else 0.0
+        uv_out[i, 0] = u0[i]
+        uv_out[i, 1] = v0[i]
         if wi > 0.0:
             sw += wi
-            swe += wi * e[i] * e[i]
+            swe += wi * r * r
             if wi > 0.1:
                 ninl += 1
     stats[0] = med
-    stats[1] = nvalid / max(n, 1)
-    stats[2] = ninl / max(n, 1)
+    stats[1] = nvalid / max(m_last, 1)
+    stats[2] = ninl / max(m_last, 1)
     stats[3] = math.sqrt(swe / sw) if sw > 0.0 else np.inf
     stats[4] = 1.0 if ok else 0.0
     stats[5] = total_iters
     stats[6] = last_step
     stats[7] = beta
     stats[8] = alpha
+    stats[9] = medg
+    stats[10] = nkeep
     return T, stats
+
+
+# ------------------------------------------------------------------ reference precomputation
 
 
 @njit(cache=True, nogil=True)
@@ -632,9 +803,10 @@ def precompute_reference(
 ) -> None:
     """Reference intensities and the Jacobian of eq. (6), once per reference and level.
 
-    J_i = grad I*(w(P_i; I)) . d w(e^{-A(x)} P_i)/dx at x = 0, including the lens distortion
-    of eq. (3)-(4) in the warp derivative. Image gradients are central differences of the
-    bilinearly interpolated image. Points outside a level's image get c* = 0 and J = 0.
+    ``P`` (3, n); ``cstar`` (3, n) and ``J`` (3, 6, n) are filled. J_i = grad I*(w(P_i; I)) .
+    d w(e^{-A(x)} P_i)/dx at x = 0, including the lens distortion of eq. (3)-(4) in the warp
+    derivative. Image gradients are central differences of the bilinearly interpolated image.
+    Points outside a level's image get c* = 0 and J = 0.
     """
     fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
     k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
@@ -642,8 +814,8 @@ def precompute_reference(
         img = img0 if lev == 0 else (img1 if lev == 1 else img2)
         s = scales[lev]
         h, w = img.shape
-        for i in range(P.shape[0]):
-            X, Y, Z = P[i, 0], P[i, 1], P[i, 2]
+        for i in range(P.shape[1]):
+            X, Y, Z = np.float64(P[0, i]), np.float64(P[1, i]), np.float64(P[2, i])
             xn = X / Z
             yn = Y / Z
             r2 = xn * xn + yn * yn
@@ -655,7 +827,7 @@ def precompute_reference(
             if not (uL >= 1.0 and vL >= 1.0 and uL < w - 2.0 and vL < h - 2.0):
                 cstar[lev, i] = 0.0
                 for a in range(6):
-                    J[lev, i, a] = 0.0
+                    J[lev, a, i] = 0.0
                 continue
             cstar[lev, i] = _bilinear(img, uL, vL)
             gu = 0.5 * (_bilinear(img, uL + 1.0, vL) - _bilinear(img, uL - 1.0, vL))
@@ -675,10 +847,10 @@ def precompute_reference(
             dPy = gy * iz
             dPz = -(gx * xn + gy * yn) * iz
             # d (e^{-A(x)} P)/dx at 0 = [-I | [P]x]
-            J[lev, i, 0] = -dPx
-            J[lev, i, 1] = -dPy
-            J[lev, i, 2] = -dPz
+            J[lev, 0, i] = -dPx
+            J[lev, 1, i] = -dPy
+            J[lev, 2, i] = -dPz
             # [P]x w : rows (0,-Z,Y),(Z,0,-X),(-Y,X,0); gradient . ([P]x) column-wise
-            J[lev, i, 3] = dPy * Z - dPz * Y
-            J[lev, i, 4] = -dPx * Z + dPz * X
-            J[lev, i, 5] = dPx * Y - dPy * X
+            J[lev, 3, i] = dPy * Z - dPz * Y
+            J[lev, 4, i] = -dPx * Z + dPz * X
+            J[lev, 5, i] = dPx * Y - dPy * X

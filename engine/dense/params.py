@@ -57,11 +57,16 @@ class DenseParams:
         metadata={"help": "affine brightness model (gain and offset, robust fit once per "
                   "level) instead of the offset alone; needs brightness_offset"},
     )
-    convergence_step: float = field(
+    stop_px: float = field(
         default=0.0,
-        metadata={"help": "stop a level's iterations when the update |x| falls below this "
-                  "(the iteration counts are then a cap); 0: fixed counts (the paper)",
-                  "min": 0.0, "max": 0.01, "step": 1e-5},
+        metadata={"help": "stop a level's iterations once an update moves the image by less "
+                  "than this many pixels of that level (the counts become caps); 0: fixed "
+                  "counts (the paper)", "min": 0.0, "max": 1.0, "step": 0.005},
+    )
+    coarse_point_fraction: float = field(
+        default=1.0,
+        metadata={"help": "share of the points used at 160x120 (half of it at 80x60); 1: all "
+                  "points at every level (the paper)", "min": 0.05, "max": 1.0, "step": 0.05},
     )
     geometric_weight: float = field(
         default=0.0,
@@ -176,3 +181,8 @@ class DenseParams:
     @property
     def iterations_fine_to_coarse(self) -> tuple[int, int, int]:
         return (self.iterations_fine, self.iterations_mid, self.iterations_coarse)
+
+    @property
+    def level_fraction_fine_to_coarse(self) -> tuple[float, float, float]:
+        f = self.coarse_point_fraction
+        return (1.0, f, 0.5 * f if f < 1.0 else 1.0)

@@ -8,7 +8,7 @@ runs Algorithm 1 against a current frame and returns the base transform T^ = T_c
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,8 +30,13 @@ class Preprocessed:
     intrinsics: Intrinsics
 
 
-def preprocess(gray_full: F32, depth_m: NDArray[np.floating], intr: Intrinsics) -> Preprocessed:
-    """Sec. 4.6 pre-processing of one RGB-D frame (depth is kept at full resolution)."""
+def preprocess(
+    gray_full: NDArray[np.floating] | NDArray[np.uint8],
+    depth_m: NDArray[np.floating],
+    intr: Intrinsics,
+) -> Preprocessed:
+    """Sec. 4.6 pre-processing of one RGB-D frame (grey uint8 or float; depth is kept at
+    full resolution)."""
     if gray_full.shape != (intr.height, intr.width):
         raise ValueError(
             f"image is {gray_full.shape[1]}x{gray_full.shape[0]} but the intrinsics say "
@@ -97,32 +102,51 @@ def _normals(depth: F32, intr: Intrinsics, uf: NDArray[np.int64], vf: NDArray[np
     return n
 
 
-_NO_N = np.zeros((0, 3))
-_NO_JG = np.zeros((0, 6))
+_NO_N = np.zeros((3, 0), dtype=np.float32)
+_NO_JG = np.zeros((6, 0), dtype=np.float32)
 _NO_RAYS = np.zeros((1, 1, 2))
+_NO_TCD = np.eye(4)
 
 
 def cam_vector(intr: Intrinsics) -> F64:
     return np.array([intr.fx, intr.fy, intr.cx, intr.cy], dtype=np.float64)
 
 
+def spread_order(n: int) -> NDArray[np.int64]:
+    """A permutation of ``range(n)`` whose prefixes of length n/4 and n/2 are every 4th and
+    every 2nd index: on points sorted in image order, any such prefix covers the image."""
+    idx = np.arange(n)
+    return np.concatenate([idx[0::4], idx[2::4], idx[1::2]])
+
+
 @dataclass(frozen=True, slots=True)
 class Reference:
-    """Selected points P* with c* and J per level (eq. (6)), computed once per reference."""
+    """Selected points P* with c* and J per level (eq. (6)), computed once per reference.
 
-    P: F64  # (n, 3) reference camera frame
-    cstar: F64  # (3, n)
-    J: F64  # (3, n, 6)
-    uv_full: F64  # (n, 2) pixels of the points in the reference image
+    Structure-of-arrays, float32 (the kernels compute in float64): ``P`` (3, n) in the
+    reference camera frame, ``cstar`` (3, n) per level, ``J`` (3, 6, n) per level. The points
+    are in :func:`spread_order` so that a prefix serves as a thinner spread-out set.
+    """
+
+    P: F32  # (3, n) reference camera frame, metres
+    cstar: F32  # (3 levels, n)
+    J: F32  # (3 levels, 6, n)
+    uv_full: F32  # (n, 2) pixels of the points in the reference image
     intrinsics: Intrinsics
     n_requested: int
-    extras: dict[str, float] = field(default_factory=dict)
-    normals: F64 | None = None  # (n, 3) unit normals (0: none), for the geometric term
-    Jg: F64 | None = None  # (n, 6) Jacobian of the point-to-plane residual (inverse comp.)
+    z_median_m: float = 1.0  # median depth of the points (convergence test scale)
+    normals: F32 | None = None  # (3, n) unit normals (0: none), for the geometric term
+    Jg: F32 | None = None  # (6, n) Jacobian of the point-to-plane residual (inverse comp.)
 
     @property
     def n(self) -> int:
-        return int(self.P.shape[0])
+        return int(self.P.shape[1])
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the arrays (bytes)."""
+        arrs = (self.P, self.cstar, self.J, self.uv_full, self.normals, self.Jg)
+        return int(sum(a.nbytes for a in arrs if a is not None))
 
 
 def build_reference(
@@ -168,6 +192,7 @@ def build_reference(
     g = gradient_magnitude(l0)
     cand &= g > 0.0
     idx = select_points(g, cand, n_points)
+    idx = idx[spread_order(idx.size)]
     zi = z[idx]
     P = np.stack([xy[idx, 0] * zi, xy[idx, 1] * zi, zi], axis=1)
     N = _normals(pre.depth_m, intr, uf[idx], vf[idx], P) if with_normals else None
@@ -177,37 +202,50 @@ def build_reference(
         P = P @ T_color_depth[:3, :3].T + T_color_depth[:3, 3]
         if N is not None:
             N = N @ T_color_depth[:3, :3].T
-    P = np.ascontiguousarray(P)
-    Jg = None
+    P32 = np.ascontiguousarray(P.T, dtype=np.float32)
+    N32 = Jg = None
     if N is not None:
-        N = np.ascontiguousarray(N)
+        N32 = np.ascontiguousarray(N.T, dtype=np.float32)
         # point-to-plane residual r = n . (T^-1 Q - P) (Q: current depth point); the inverse
         # compositional increment gives the constant Jacobian [-n, -(P x n)] at x = 0
-        Jg = np.ascontiguousarray(np.concatenate([-N, -np.cross(P, N)], axis=1))
+        Jg = np.ascontiguousarray(
+            np.concatenate([-N, -np.cross(P, N)], axis=1).T, dtype=np.float32
+        )
     n = P.shape[0]
-    cstar = np.zeros((3, n))
-    J = np.zeros((3, n, 6))
+    cstar = np.zeros((3, n), dtype=np.float32)
+    J = np.zeros((3, 6, n), dtype=np.float32)
     kernels.precompute_reference(
-        P, pre.levels[0], pre.levels[1], pre.levels[2], cam_vector(intr), intr.dist,
+        P32, pre.levels[0], pre.levels[1], pre.levels[2], cam_vector(intr), intr.dist,
         pyr.level_scales(), cstar, J,
     )
-    uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float64)
-    return Reference(P, cstar, J, uv, intr, n_points, normals=N, Jg=Jg)
+    uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float32)
+    zmed = float(np.median(P[:, 2])) if n else 1.0
+    return Reference(P32, cstar, J, uv, intr, n_points, zmed, normals=N32, Jg=Jg)
 
 
 def orthonormalize(T: F64) -> F64:
-    """Project the rotation of a rigid transform back onto SO(3) (nearest, by SVD).
+    """Project the rotation of a rigid transform back onto SO(3) (nearest).
 
     Poses are composed with ``invert`` (which uses R^T); without this, float round-off in
-    chained compositions is amplified about threefold per reference update.
+    chained compositions is amplified about threefold per reference update. A rotation that
+    is orthonormal to round-off takes one Newton step of the polar decomposition,
+    R <- R (3 I - R^T R) / 2 (quadratic convergence); anything further off the SVD.
     """
-    U, _, Vt = np.linalg.svd(T[:3, :3])
-    R = U @ Vt
-    if np.linalg.det(R) < 0:
-        U[:, -1] = -U[:, -1]
-        R = U @ Vt
     out = np.array(T, dtype=np.float64)
-    out[:3, :3] = R
+    R = out[:3, :3]
+    E = R.T @ R
+    E[0, 0] -= 1.0
+    E[1, 1] -= 1.0
+    E[2, 2] -= 1.0
+    if float(np.abs(E).max()) < 1e-6:
+        out[:3, :3] = R - 0.5 * (R @ E)
+    else:
+        U, _, Vt = np.linalg.svd(R)
+        Rn = U @ Vt
+        if np.linalg.det(Rn) < 0:
+            U[:, -1] = -U[:, -1]
+            Rn = U @ Vt
+        out[:3, :3] = Rn
     out[3] = (0.0, 0.0, 0.0, 1.0)
     return out
 
@@ -217,7 +255,7 @@ class AlignResult:
     """Result of Algorithm 1 for one frame."""
 
     T_cur_ref: F64
-    median_abs_e: float  # grey levels (0-255), level 0
+    median_abs_e: float  # grey levels (0-255), finest level evaluated
     valid_fraction: float  # points projecting inside the image
     inlier_fraction: float  # points with weight > 0.1
     rms: float  # weighted RMS residual (grey levels)
@@ -228,6 +266,12 @@ class AlignResult:
     residuals: F32  # (n,)
     brightness_offset: float = 0.0  # removed global offset (grey levels), finest level
     brightness_gain: float = 1.0  # fitted gain of the affine brightness model, finest level
+    median_abs_geo_m: float = 0.0  # median |point-to-plane residual| (geometric term only)
+    steps_px: tuple[float, ...] = ()  # image motion of each update (pixels of its level)
+
+
+#: longest iteration log kept in AlignResult.steps_px
+_MAX_STEPS = 64
 
 
 def align(
@@ -245,33 +289,43 @@ def align(
     min_geo_scale_m: float = 0.001,
     T_color_depth: F64 | None = None,
     brightness_gain: bool = False,
-    step_tol: float = 0.0,
+    stop_px: float = 0.0,
+    level_fraction: tuple[float, float, float] = (1.0, 1.0, 1.0),
 ) -> AlignResult:
-    """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1)."""
+    """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1).
+
+    ``level_fraction`` (fine to coarse): the share of the points used at each level (the
+    paper: all at every level); ``stop_px``: stop a level once an update moves the image by
+    less than this many pixels of that level (0: the fixed counts of the paper).
+    """
     from engine.dense import kernels
 
     intr = pre.intrinsics
     n = ref.n
-    w = np.zeros(n)
-    uv = np.zeros((n, 2))
-    e = np.zeros(n)
+    w = np.empty(n, dtype=np.float32)
+    uv = np.empty((n, 2), dtype=np.float32)
+    e = np.empty(n, dtype=np.float32)
+    steps = np.zeros(_MAX_STEPS)
+    use_geo = geo_weight > 0 and ref.normals is not None and ref.Jg is not None
+    level_n = np.array([max(1, round(f * n)) for f in level_fraction], dtype=np.int64)
     T, st = kernels.minimize(
         ref.P, ref.cstar, ref.J, pre.levels[0], pre.levels[1], pre.levels[2], pre.depth_m,
         cam_vector(intr), intr.dist, pyr.level_scales(),
-        np.asarray(iterations_fine_to_coarse, dtype=np.int64),
+        np.asarray(iterations_fine_to_coarse, dtype=np.int64), level_n,
         np.ascontiguousarray(T0_cur_ref, dtype=np.float64), float(tau_m),
         float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
-        bool(brightness_offset), w, uv, e,
-        ref.normals if ref.normals is not None and geo_weight > 0 else _NO_N,
-        ref.Jg if ref.Jg is not None and geo_weight > 0 else _NO_JG,
-        full_rays(intr) if geo_weight > 0 else _NO_RAYS,
-        float(geo_weight), float(min_geo_scale_m),
-        np.eye(4) if T_color_depth is None else np.ascontiguousarray(T_color_depth, np.float64),
-        bool(brightness_gain and brightness_offset), float(step_tol),
+        bool(brightness_offset), bool(brightness_gain and brightness_offset),
+        ref.normals if use_geo else _NO_N,
+        ref.Jg if use_geo else _NO_JG,
+        full_rays(intr) if use_geo else _NO_RAYS,
+        float(geo_weight) if use_geo else 0.0, float(min_geo_scale_m),
+        _NO_TCD if T_color_depth is None else np.ascontiguousarray(T_color_depth, np.float64),
+        float(stop_px), float(ref.z_median_m), w, uv, e, steps,
     )
     ok = bool(st[4] > 0.5) and bool(np.all(np.isfinite(T)))
     if ok:
         T = orthonormalize(T)
+    its = int(st[5])
     return AlignResult(
         T_cur_ref=T,
         median_abs_e=float(st[0]),
@@ -279,10 +333,12 @@ def align(
         inlier_fraction=float(st[2]),
         rms=float(st[3]),
         ok=ok,
-        iterations=int(st[5]),
-        weights=w.astype(np.float32),
-        uv_full=uv.astype(np.float32),
-        residuals=e.astype(np.float32),
+        iterations=its,
+        weights=w,
+        uv_full=uv,
+        residuals=e,
         brightness_offset=float(st[7]),
         brightness_gain=float(st[8]),
+        median_abs_geo_m=float(st[9]),
+        steps_px=tuple(float(v) for v in steps[: min(its, _MAX_STEPS)]),
     )

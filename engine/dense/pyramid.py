@@ -3,15 +3,14 @@
 Level 0 is the half-resolution image (5x5 Gaussian then 2x2 averaging, so that every level
 keeps the pixel-centre convention ``u_L = (u + 0.5) / 2^(L+1) - 0.5``); levels 1 and 2 are
 2x2 block averages. Only intensities are downsampled: the geometry (depth) stays at full
-resolution (sec. 3.2).
+resolution (sec. 3.2). The filters are OpenCV's (separable Gaussian straight from the 8-bit
+grey image to float32, area resizing = exact 2x2 means).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-
-from engine.arrays import f32
 
 F32 = NDArray[np.float32]
 
@@ -25,28 +24,37 @@ def level_scales() -> NDArray[np.float64]:
 
 def gray_from_bgr(color_bgr: NDArray[np.uint8]) -> F32:
     """Grey float32 image in [0, 255] from BGR (or already grey) uint8."""
+    return gray_u8(color_bgr).astype(np.float32)
+
+
+def gray_u8(color_bgr: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """Grey uint8 image from BGR (or already grey) uint8 (OpenCV's BT.601 weights)."""
     import cv2
 
     if color_bgr.ndim == 2:
-        return color_bgr.astype(np.float32)
-    return cv2.cvtColor(color_bgr, cv2.COLOR_BGR2GRAY).astype(np.float32)
+        return np.asarray(color_bgr)
+    return cv2.cvtColor(color_bgr, cv2.COLOR_BGR2GRAY)
 
 
-def _half(img: F32) -> F32:
-    """2x2 block average (odd trailing row/column dropped)."""
-    h, w = img.shape[0] // 2 * 2, img.shape[1] // 2 * 2
-    v = img[:h, :w]
-    return (0.25 * (v[0::2, 0::2] + v[1::2, 0::2] + v[0::2, 1::2] + v[1::2, 1::2])).astype(
-        np.float32, copy=False
-    )
+_GAUSS5 = np.array([1.0, 4.0, 6.0, 4.0, 1.0], dtype=np.float32) / 16.0
 
 
-def build_pyramid(gray_full: F32) -> tuple[F32, F32, F32]:
-    """(level0, level1, level2) contiguous float32 images for a full-resolution grey image."""
+def build_pyramid(gray_full: NDArray[np.floating] | NDArray[np.uint8]) -> tuple[F32, F32, F32]:
+    """(level0, level1, level2) contiguous float32 images for a full-resolution grey image
+    (uint8 or float)."""
     import cv2
 
-    blurred = f32(cv2.GaussianBlur(gray_full, (5, 5), 0.0, borderType=cv2.BORDER_REFLECT101))
-    l0 = _half(blurred)
-    l1 = _half(l0)
-    l2 = _half(l1)
-    return (np.ascontiguousarray(l0), np.ascontiguousarray(l1), np.ascontiguousarray(l2))
+    g = np.ascontiguousarray(gray_full)
+    if g.dtype not in (np.uint8, np.float32):
+        g = g.astype(np.float32)
+    # 5x5 Gaussian (OpenCV's ksize-5 kernel 1 4 6 4 1 / 16, reflect-101 border), then 2x2
+    # block means: cv2.INTER_AREA at exactly half size is the 2x2 mean (odd edge dropped)
+    blurred = cv2.sepFilter2D(g, cv2.CV_32F, _GAUSS5, _GAUSS5, borderType=cv2.BORDER_REFLECT101)
+    out = [blurred]
+    for _ in range(N_LEVELS):
+        src = out[-1]
+        h, w = src.shape[0] // 2, src.shape[1] // 2
+        out.append(cv2.resize(src[: 2 * h, : 2 * w], (w, h), interpolation=cv2.INTER_AREA))
+    return (
+        np.ascontiguousarray(out[1]), np.ascontiguousarray(out[2]), np.ascontiguousarray(out[3])
+    )

@@ -27,7 +27,7 @@ from engine.camera import Intrinsics
 from engine.dense import photometric as ph
 from engine.dense.details import DenseDetails
 from engine.dense.params import DenseParams
-from engine.dense.pyramid import gray_from_bgr
+from engine.dense.pyramid import gray_u8
 from engine.errors import TrackerError
 from engine.frames import Frame
 from engine.geometry import invert, rotation_angle_rad, se3_exp, se3_log
@@ -116,7 +116,7 @@ class _DenseBase:
         if intr is None:
             raise TrackerError(f"{self.name}: frame {frame.index} has no intrinsics")
         self._intr = intr
-        return ph.preprocess(gray_from_bgr(frame.color_bgr), frame.depth_m, intr)
+        return ph.preprocess(gray_u8(frame.color_bgr), frame.depth_m, intr)
 
     def _build_reference(
         self, pre: ph.Preprocessed, frame: Frame | None = None
@@ -169,7 +169,7 @@ class _DenseBase:
             use_depth=p.use_depth_weights, min_residual_scale=p.min_residual_scale,
             brightness_offset=p.brightness_offset, geo_weight=p.geometric_weight,
             T_color_depth=T_cd, brightness_gain=p.brightness_gain,
-            step_tol=p.convergence_step,
+            stop_px=p.stop_px, level_fraction=p.level_fraction_fine_to_coarse,
         )
         good, why = _check(res, T0, p, self._max_residual())
         return _Attempt(res, good, why)
@@ -374,7 +374,7 @@ class DenseKeyframeTracker(_DenseBase):
         ref = self._refs.get(kf.id)
         if ref is None:
             assert self._store is not None
-            pre = ph.preprocess(kf.gray.astype(np.float32), kf.depth_m, self._store.intrinsics)
+            pre = ph.preprocess(kf.gray, kf.depth_m, self._store.intrinsics)
             ref = self._build_reference(pre)
             self._refs[kf.id] = ref
         return ref
@@ -476,7 +476,7 @@ class DenseKeyframeTracker(_DenseBase):
         assert self._store is not None
         assert frame.color_bgr is not None
         assert frame.depth_m is not None
-        gray = np.clip(gray_from_bgr(frame.color_bgr), 0, 255).round().astype(np.uint8)
+        gray = np.array(gray_u8(frame.color_bgr), dtype=np.uint8)
         kf = self._store.add(T_world_cam, gray, np.array(frame.depth_m, dtype=np.float32))
         self._refs[kf.id] = self._build_reference(pre, frame)
         self._kf_id = kf.id

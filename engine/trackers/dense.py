@@ -16,7 +16,7 @@ points are moved by the camera motion between the depth and colour timestamps wh
 gives both (``compensate_depth_delay``, TUM); points on depth discontinuities are not selected.
 Off by default (measured on TUM fr1_xyz and the studio rail without a clear gain, see
 ``studiotrack bench dense``): an affine brightness model (``brightness_gain``), a per-level
-convergence stop (``convergence_step``, the counts become caps) and a point-to-plane depth
+convergence stop (``stop_px``, the counts become caps) and a point-to-plane depth
 residual added to the photometric cost (``geometric_weight``, as in the authors' follow-up
 "direct ICP"; the current depth is moved to the colour instant like the reference points).
 """
