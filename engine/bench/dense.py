@@ -10,8 +10,10 @@ compare within one run):
   per-frame translation error to the ground truth recorded. Both start at the first frame's
   known pose (the studio's start mark).
 - **speed**: on the first ``--speed-frames`` rail frames, the whole per-frame ``track()`` of
-  ``dense`` (pre-processing included, 8192 points, 2/3/10 iterations), ``dense-incremental``
-  and ``opencv-odometry`` on the same frames; median / p95 ms and the speed-up.
+  ``dense`` with the sweep store (pre-processing included, 8192 points, 2/3/10 iterations;
+  also forced to 1 and 2 threads, and ``preset=paper``), ``dense-incremental`` and
+  ``opencv-odometry``, interleaved frame by frame; median / p95 wall ms, process CPU ms, the
+  speed-up, and ``stages_ms`` (median ms per stage of the tracker's ``timings_ms``).
 - **real**: ``../shared/data/tum_fr1_xyz_37`` (fr1 intrinsics + distortion): ATE RMSE and RPE
   (1 s) of ``dense-incremental``, ``opencv-odometry`` (RGB_DEPTH), ``opencv-icp``
   (``opencv-odometry`` with ``algorithm=icp``), ``open3d-odometry`` (and ``dense`` building
@@ -55,12 +57,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the presenter walks during the last N cycles")
     parser.add_argument("--cycle-s", type=float, default=6.0, help="seconds per rail cycle")
     parser.add_argument("--speed-frames", type=int, default=60,
-                        help="rail frames timed for all three trackers (opencv is slow)")
+                        help="rail frames timed for every tracker (opencv is slow)")
     parser.add_argument("--kf-dist", type=float, default=0.10,
                         help="sweep: new keyframe every this many metres (>= 30 keyframes)")
     parser.add_argument("--points", type=int, default=8192, help="reference points")
     parser.add_argument("--skip", default="",
-                        help="comma list of parts to skip: real, rail, keyframes, memory")
+                        help="comma list of parts to skip: real, speed, rail, keyframes, memory")
     parser.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots here")
 
 
@@ -164,7 +166,7 @@ def _sweep_store(points: int, kf_dist: float) -> Any:
     return res
 
 
-def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+def _rail(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     from engine.dense.details import DenseDetails
     from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
@@ -178,27 +180,13 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
     log(f"rail: {spec} ({n} frames)")
     dense = DenseKeyframeTracker(DenseParams(n_points=args.points), store=store)
     incr = create_tracker("dense-incremental", n_points=args.points)
-    ocv = create_tracker("opencv-odometry")
-    err_d, err_i, ms_d, ms_i, ms_o = [], [], [], [], []
+    err_d, err_i = [], []
     lost_d = lost_i = 0
     presenter = []
     relock = []
-    cpu_d, cpu_i, cpu_o = [], [], []
     for f in src.frames():
-        c0, t0 = time.process_time(), time.perf_counter()
         rd = dense.track(f)
-        c1, t1 = time.process_time(), time.perf_counter()
         ri = incr.track(f)
-        c2, t2 = time.process_time(), time.perf_counter()
-        if f.index < args.speed_frames:
-            ocv.track(f)
-            if f.index > 0:  # frame 0 is each tracker's initialisation: not timed
-                ms_o.append((time.perf_counter() - t2) * 1e3)
-                cpu_o.append((time.process_time() - c2) * 1e3)
-                ms_d.append((t1 - t0) * 1e3)
-                ms_i.append((t2 - t1) * 1e3)
-                cpu_d.append((c1 - c0) * 1e3)
-                cpu_i.append((c2 - c1) * 1e3)
         err_d.append(_terr(rd.T_world_cam, f.gt_T_world_cam))
         err_i.append(_terr(ri.T_world_cam, f.gt_T_world_cam))
         lost_d += 0 if rd.state.is_good else 1
@@ -230,30 +218,101 @@ def _rail(args: argparse.Namespace, store: Any) -> tuple[dict[str, Any], dict[st
         "incremental_max_err_per_cycle_m": cyc_i,
         "incremental_lost_frames": lost_i,
     }
-    sd, si, so = _stats(ms_d), _stats(ms_i), _stats(ms_o)
-    # CPU time of the process per frame: less sensitive to other jobs on a shared machine
-    # (OpenCV's worker threads are included in its number)
-    for st_, cpu in ((sd, cpu_d), (si, cpu_i), (so, cpu_o)):
-        st_["cpu_ms_median"] = float(np.median(cpu)) if cpu else float("nan")
-    speed = {
-        "frames": spec + f" (first {args.speed_frames})",
-        "dense": sd,
-        "dense_incremental": si,
-        "opencv_odometry": so,
-        "speedup_vs_opencv": so["ms_median"] / sd["ms_median"] if sd["ms_median"] > 0 else None,
-        "cpu_speedup_vs_opencv": (
-            so["cpu_ms_median"] / sd["cpu_ms_median"] if sd["cpu_ms_median"] > 0 else None
-        ),
-    }
     log(f"rail: dense max {rail['keyframe_max_err_m'] * 1e3:.2f} mm, incremental final "
          f"{rail['incremental_final_err_m'] * 1e3:.2f} mm")
-    log(f"speed (CPU ms): dense {sd['cpu_ms_median']:.1f}, incremental "
-         f"{si['cpu_ms_median']:.1f}, opencv {so['cpu_ms_median']:.1f}")
-    log(f"speed: dense {sd['ms_median']:.1f} ms (p95 {sd['ms_p95']:.1f}), incremental "
-         f"{si['ms_median']:.1f}, opencv {so['ms_median']:.1f} "
-         f"-> x{speed['speedup_vs_opencv']:.1f}")
     rail["_series"] = {"dense": ed, "incremental": ei, "presenter": np.asarray(presenter)}
-    return rail, speed
+    return rail
+
+
+#: the stages of the dense trackers' ``timings_ms`` reported by the speed part
+STAGES = ("preprocess", "keyframe", "minimize", "select", "result", "total")
+
+
+def _speed(args: argparse.Namespace, store: Any) -> dict[str, Any]:
+    """The whole per-frame ``track()`` of each tracker on the same first ``--speed-frames``
+    rail frames, interleaved frame by frame (load on a shared machine hits all alike).
+
+    ``dense`` is the default tracker (its ``threads`` setting), ``dense_1thread`` and
+    ``dense_2threads`` force the thread count, ``dense_paper`` is ``preset=paper``. Frame 0 is
+    each tracker's initialisation (store references built, relocalisation) and not timed.
+    ``stages_ms`` are per-stage medians of the trackers' own ``timings_ms``.
+    """
+    from engine.dense.details import DenseDetails
+    from engine.dense.params import DenseParams
+    from engine.dense.tracking import DenseKeyframeTracker
+    from engine.sources import open_source
+    from engine.trackers import create_tracker
+
+    spec = _rail_spec(args.cycles, args.cycle_s, args.presenter_cycles)
+    frames = []
+    for f in open_source(spec).frames():
+        if f.index >= args.speed_frames:
+            break
+        frames.append(f)
+    base = DenseParams(n_points=args.points)
+    configs = {
+        "dense": base,
+        "dense_1thread": dataclasses.replace(base, threads=1),
+        "dense_2threads": dataclasses.replace(base, threads=2),
+        "dense_paper": base.with_preset("paper"),
+    }
+    trackers: dict[str, Any] = {
+        name: DenseKeyframeTracker(p, store=store) for name, p in configs.items()
+    }
+    trackers["dense_incremental"] = create_tracker("dense-incremental", n_points=args.points)
+    trackers["opencv_odometry"] = create_tracker("opencv-odometry")
+    wall: dict[str, list[float]] = {k: [] for k in trackers}
+    cpu: dict[str, list[float]] = {k: [] for k in trackers}
+    stages: dict[str, dict[str, list[float]]] = {k: {} for k in trackers}
+    iters: dict[str, list[int]] = {k: [] for k in trackers}
+    for f in frames:
+        for name, tr in trackers.items():
+            c0, t0 = time.process_time(), time.perf_counter()
+            r = tr.track(f)
+            t1, c1 = time.perf_counter(), time.process_time()
+            if f.index == 0:
+                continue
+            wall[name].append((t1 - t0) * 1e3)
+            cpu[name].append((c1 - c0) * 1e3)
+            for k, v in r.timings_ms.items():
+                stages[name].setdefault(k, []).append(float(v))
+            dd = r.details_as(DenseDetails)
+            if dd is not None and dd.iterations is not None:
+                iters[name].append(int(dd.iterations))
+    out: dict[str, Any] = {"frames": spec + f" (first {args.speed_frames})"}
+    for name in trackers:
+        st = _stats(wall[name])
+        # CPU time of the whole process per frame (OpenCV's and numba's worker threads
+        # included): less sensitive to other jobs on a shared machine than wall time
+        st["cpu_ms_median"] = float(np.median(cpu[name])) if cpu[name] else float("nan")
+        out[name] = st
+    sd, so = out["dense"], out["opencv_odometry"]
+    out["speedup_vs_opencv"] = so["ms_median"] / sd["ms_median"] if sd["ms_median"] > 0 else None
+    out["cpu_speedup_vs_opencv"] = (
+        so["cpu_ms_median"] / sd["cpu_ms_median"] if sd["cpu_ms_median"] > 0 else None
+    )
+    out["stages_ms"] = {}
+    for name in ("dense", "dense_paper", "dense_incremental"):
+        med = {k: float(np.median(v)) for k, v in stages[name].items() if k in STAGES}
+        # frames without a stage (no reference built) count as 0 ms in its median
+        n_fr = len(wall[name])
+        for k, v in stages[name].items():
+            if k in STAGES and len(v) < n_fr:
+                med[k] = float(np.median(v + [0.0] * (n_fr - len(v))))
+        if iters[name]:
+            med["iterations"] = float(np.median(iters[name]))
+            med["minimize_per_iteration"] = med.get("minimize", 0.0) / max(med["iterations"], 1)
+        out["stages_ms"][name] = med
+    log("speed (median wall ms / CPU ms / p95 wall):")
+    for name in trackers:
+        st = out[name]
+        log(f"  {name:18s} {st['ms_median']:6.2f} / {st['cpu_ms_median']:6.2f} / "
+             f"{st['ms_p95']:6.2f}")
+    log(f"  dense vs opencv: x{out['speedup_vs_opencv']:.1f} (CPU x"
+         f"{out['cpu_speedup_vs_opencv']:.1f})")
+    log("  stages (median ms): " + ", ".join(
+        f"{k} {v:.2f}" for k, v in out["stages_ms"]["dense"].items()))
+    return out
 
 
 def _ground_truth_store(store: Any) -> Any:
@@ -442,10 +501,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     out["sweep"] = {
         "keyframes": len(sw.store), "frames": sw.frames_processed, "lost": sw.lost_frames
     }
+    if "speed" not in skip:
+        out["speed"] = _speed(args, sw.store)
+        out["stages_ms"] = out["speed"]["stages_ms"]["dense"]
     if "rail" not in skip:
-        rail, speed = _rail(args, sw.store)
+        rail = _rail(args, sw.store)
         out["rail"] = {k: v for k, v in rail.items() if not k.startswith("_")}
-        out["speed"] = speed
     if "keyframes" not in skip:
         kfc = _keyframe_counts(args, sw.store)
         out["keyframe_count"] = kfc

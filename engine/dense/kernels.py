@@ -27,9 +27,14 @@ the Tukey scale (the median of |e - offset|).
 from __future__ import annotations
 
 import math
+import os
+
+# numba's OpenMP layer (threads > 1): idle worker threads sleep at once instead of spinning,
+# which on a busy 2-core machine would take the core the tracker's own thread needs
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 # Tukey constants, eq. (9)-(10).
 TUKEY_C = 1.4826
@@ -234,11 +239,11 @@ def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
 @njit(cache=True, fastmath=True, nogil=True)
 def project(
     P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray,
-    u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, m: int,
+    u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, lo: int, hi: int,
 ) -> None:
-    """Warp of eq. (2)-(4) for the first ``m`` points: full-resolution pixels ``(u0, v0)`` and
-    the depth ``Z`` in the current camera (a vectorised loop; Z <= 0 is caught by the
-    sampler). Whole arrays and a count rather than slices keep numba's contiguous layout."""
+    """Warp of eq. (2)-(4) for points ``lo:hi``: full-resolution pixels ``(u0, v0)`` and the
+    depth ``Z`` in the current camera (a vectorised loop; Z <= 0 is caught by the sampler).
+    Whole arrays and an index range rather than slices keep numba's contiguous layout."""
     fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
     k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
     r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
@@ -247,7 +252,7 @@ def project(
     Px = P[0]
     Py = P[1]
     Pz = P[2]
-    for i in range(m):
+    for i in range(lo, hi):
         px = np.float64(Px[i])
         py = np.float64(Py[i])
         pz = np.float64(Pz[i])
@@ -270,29 +275,31 @@ def project(
 def sample(
     u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, cstar: np.ndarray, img: np.ndarray,
     depth: np.ndarray, scale: float, inv_tau2: float, missing_depth_weight: float,
-    use_depth: bool, e: np.ndarray, wz: np.ndarray, m: int,
+    use_depth: bool, e: np.ndarray, wz: np.ndarray, inside: np.ndarray, lo: int, hi: int,
 ) -> int:
     """Residual of eq. (1) and depth weight of eq. (11)-(12) at one level, for every point.
 
     ``e = c* - I(w(P; T^))`` (inverse-compositional form) by bilinear sampling; the current
     depth is read at the nearest full-resolution pixel (no resampling across edges). Points
-    outside the level image (or behind the camera) get ``e = wz = 0``. Returns the number
-    inside the image.
+    outside the level image (or behind the camera) get ``e = wz = inside = 0``. Returns the
+    number inside the image.
     """
     h, w = img.shape
     hd, wd = depth.shape
     wmax = w - 1.0
     hmax = h - 1.0
     nvalid = 0
-    for i in range(m):
+    for i in range(lo, hi):
         e[i] = 0.0
         wz[i] = 0.0
+        inside[i] = 0.0
         Zi = Z[i]
         uL = (u0[i] + 0.5) * scale - 0.5
         vL = (v0[i] + 0.5) * scale - 0.5
         if not (Zi > 1e-3 and uL >= 0.0 and vL >= 0.0 and uL < wmax and vL < hmax):
             continue
         nvalid += 1
+        inside[i] = 1.0
         x0 = int(uL)
         y0 = int(vL)
         ax = uL - x0
@@ -322,18 +329,19 @@ def sample(
 
 @njit(cache=True, fastmath=True, nogil=True)
 def histogram(
-    x: np.ndarray, w: np.ndarray, unit: float, bins: np.ndarray, hist: np.ndarray, m: int
+    x: np.ndarray, w: np.ndarray, unit: float, bins: np.ndarray, hist: np.ndarray, lo: int,
+    hi: int,
 ) -> int:
-    """Add ``x * unit`` of the first ``m`` points with ``w > 0`` to the residual histogram
-    (bin indices in a vectorised loop, then the counts); returns how many were added."""
-    for i in range(m):
+    """Add ``x * unit`` of points ``lo:hi`` with ``w > 0`` to the residual histogram (bin
+    indices in a vectorised loop, then the counts); returns how many were added."""
+    for i in range(lo, hi):
         v = x[i] * unit
         f = min(math.sqrt(abs(v)) * HIST_K, HIST_NB - 0.5)
         b = np.int32(f)
         b = HIST_NB + b if v >= 0.0 else HIST_NB - 1 - b
         bins[i] = b if w[i] > 0.0 else 2 * HIST_NB
     cnt = 0
-    for i in range(m):
+    for i in range(lo, hi):
         b = bins[i]
         if b < 2 * HIST_NB:
             hist[b] += 1
@@ -345,7 +353,7 @@ def histogram(
 def sample_geometric(
     u0: np.ndarray, v0: np.ndarray, wz: np.ndarray, P: np.ndarray, N: np.ndarray,
     depth: np.ndarray, rays: np.ndarray, M: np.ndarray, rg: np.ndarray, wg: np.ndarray,
-    m: int,
+    lo: int, hi: int,
 ) -> int:
     """Point-to-plane residual ``r = n . (M Q - P)`` in the reference frame, Q the current
     depth point at the nearest full-resolution pixel of the warped point (projective
@@ -357,7 +365,7 @@ def sample_geometric(
     R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
     R20, R21, R22, t2 = M[2, 0], M[2, 1], M[2, 2], M[2, 3]
     cnt = 0
-    for i in range(m):
+    for i in range(lo, hi):
         rg[i] = 0.0
         wg[i] = 0.0
         if not wz[i] > 0.0:
@@ -389,13 +397,13 @@ def sample_geometric(
 @njit(cache=True, fastmath=True, nogil=True)
 def accumulate(
     J: np.ndarray, e: np.ndarray, cs: np.ndarray, wz: np.ndarray, a: float, b: float,
-    beta: float, inv: float, out: np.ndarray, m: int,
+    beta: float, inv: float, out: np.ndarray, lo: int, hi: int,
 ) -> None:
     """Tukey weights (eq. (9)-(10)) fused with the weighted normal equations of eq. (13):
     ``out[:21]`` = upper triangle of J^T W J, ``out[21:]`` = J^T W r (sec. 4.3), with the
     residual ``r = a e + b c* - beta`` (brightness model; a = 1, b = 0: offset only),
-    ``W = w_c w_z`` and ``inv = 1 / (c median b)``, over the first ``m`` points.
-    Branch-free, so it vectorises."""
+    ``W = w_c w_z`` and ``inv = 1 / (c median b)``, over points ``lo:hi``. Branch-free, so
+    it vectorises."""
     j0 = J[0]
     j1 = J[1]
     j2 = J[2]
@@ -409,7 +417,7 @@ def accumulate(
     h44 = h45 = 0.0
     h55 = 0.0
     g0 = g1 = g2 = g3 = g4 = g5 = 0.0
-    for i in range(m):
+    for i in range(lo, hi):
         r = a * e[i] + b * cs[i] - beta
         u = r * inv  # u / b of eq. (9)-(10)
         t = max(1.0 - u * u, 0.0)
@@ -480,6 +488,102 @@ def accumulate(
     out[24] = g3
     out[25] = g4
     out[26] = g5
+
+
+@njit(cache=True, nogil=True)
+def _photometric_chunk(
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, cs: np.ndarray,
+    img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float, mdw: float,
+    use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
+    wz: np.ndarray, inside: np.ndarray, over_kept: bool, bins: np.ndarray, hist: np.ndarray,
+    lo: int, hi: int,
+) -> int:
+    """Project, sample and histogram points ``lo:hi`` (one thread's share); the histogram
+    counts the points the depth test keeps (``over_kept``) or all inside the image."""
+    project(P, T, cam, dist, u0, v0, Z, lo, hi)
+    nv = sample(
+        u0, v0, Z, cs, img, depth, scale, inv_tau2, mdw, use_depth, e, wz, inside, lo, hi
+    )
+    histogram(e, wz if over_kept else inside, 1.0, bins, hist, lo, hi)
+    return nv
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _photometric_par(
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, cs: np.ndarray,
+    img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float, mdw: float,
+    use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
+    wz: np.ndarray, inside: np.ndarray, over_kept: bool, bins: np.ndarray, hists: np.ndarray,
+    nv: np.ndarray, m: int,
+) -> None:
+    """:func:`_photometric_chunk` over ``hists.shape[0]`` chunks in parallel (per-chunk
+    histograms, merged by the caller)."""
+    nc = hists.shape[0]
+    for c in prange(nc):
+        hists[c, :] = 0
+        nv[c] = _photometric_chunk(
+            P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e,
+            wz, inside, over_kept, bins, hists[c], c * m // nc, (c + 1) * m // nc,
+        )
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _accumulate_par(
+    J: np.ndarray, e: np.ndarray, cs: np.ndarray, wz: np.ndarray, a: float, b: float,
+    beta: float, inv: float, accs: np.ndarray, m: int,
+) -> None:
+    """:func:`accumulate` over ``accs.shape[0]`` chunks in parallel (summed by the caller)."""
+    nc = accs.shape[0]
+    for c in prange(nc):
+        accumulate(J, e, cs, wz, a, b, beta, inv, accs[c], c * m // nc, (c + 1) * m // nc)
+
+
+@njit(cache=True, nogil=True)
+def _photometric_pass(
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, cs: np.ndarray,
+    img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float, mdw: float,
+    use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
+    wz: np.ndarray, inside: np.ndarray, over_kept: bool, bins: np.ndarray, hist: np.ndarray,
+    hists: np.ndarray, nv: np.ndarray, m: int,
+) -> int:
+    """One photometric evaluation of the first ``m`` points into ``e``, ``wz`` and the
+    histogram ``hist``: on this thread (``hists`` with one row) or split over threads."""
+    nc = hists.shape[0]
+    if nc <= 1:
+        hist[:] = 0
+        return _photometric_chunk(
+            P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e,
+            wz, inside, over_kept, bins, hist, 0, m,
+        )
+    _photometric_par(
+        P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e, wz,
+        inside, over_kept, bins, hists, nv, m,
+    )
+    for k in range(hist.shape[0]):
+        s = 0
+        for c in range(nc):
+            s += hists[c, k]
+        hist[k] = s
+    return int(nv.sum())
+
+
+@njit(cache=True, nogil=True)
+def _accumulate_pass(
+    J: np.ndarray, e: np.ndarray, cs: np.ndarray, wz: np.ndarray, a: float, b: float,
+    beta: float, inv: float, acc: np.ndarray, accs: np.ndarray, m: int,
+) -> None:
+    """:func:`accumulate` of the first ``m`` points into ``acc``, split like
+    :func:`_photometric_pass`."""
+    nc = accs.shape[0]
+    if nc <= 1:
+        accumulate(J, e, cs, wz, a, b, beta, inv, acc, 0, m)
+        return
+    _accumulate_par(J, e, cs, wz, a, b, beta, inv, accs, m)
+    for k in range(acc.shape[0]):
+        s = 0.0
+        for c in range(nc):
+            s += accs[c, k]
+        acc[k] = s
 
 
 @njit(cache=True, nogil=True)
@@ -593,6 +697,7 @@ def minimize(
     missing_depth_weight: float,
     use_depth: bool,
     min_median: float,
+    scale_over_kept: bool,
     brightness_offset: bool,
     brightness_gain: bool,
     N: np.ndarray,
@@ -603,6 +708,7 @@ def minimize(
     T_cd: np.ndarray,
     stop_px: float,
     z_typ: float,
+    nthreads: int,
     w_out: np.ndarray,
     uv_out: np.ndarray,
     e_out: np.ndarray,
@@ -625,6 +731,7 @@ def minimize(
     ``geo_weight`` > 0 adds the point-to-plane residual of :func:`sample_geometric` (normals
     ``N`` (3, n), Jacobian ``Jg`` (6, n), full-resolution rays, ``T_cd`` moving the current
     depth to the colour instant), each residual in units of its own robust (Tukey) scale.
+    ``nthreads`` > 1 splits the photometric passes over that many threads (numba prange).
     """
     n = P.shape[1]
     T = T0.copy()
@@ -633,10 +740,15 @@ def minimize(
     Z = np.zeros(n)
     e = np.zeros(n)
     wz = np.zeros(n)
+    inside = np.zeros(n)
     hist = np.zeros(2 * HIST_NB, dtype=np.int64)
     cum = np.zeros(2 * HIST_NB + 1, dtype=np.int64)
     bins = np.zeros(n, dtype=np.int32)
     acc = np.zeros(27)
+    nc = max(1, nthreads)
+    hists = np.zeros((nc, 2 * HIST_NB), dtype=np.int64)
+    accs = np.zeros((nc, 27))
+    nv = np.zeros(nc, dtype=np.int64)
     H = np.zeros((6, 6))
     g = np.zeros(6)
     use_geo = geo_weight > 0.0 and N.shape[1] == n
@@ -664,13 +776,10 @@ def minimize(
         Jl = J[lev]
         csl = cstar[lev]
         for it in range(iters[lev]):
-            project(P, T, cam, dist, u0, v0, Z, m)
-            nvalid = sample(
-                u0, v0, Z, csl, img, depth, scales[lev], inv_tau2, missing_depth_weight,
-                use_depth, e, wz, m,
+            nvalid = _photometric_pass(
+                P, T, cam, dist, csl, img, depth, scales[lev], inv_tau2, missing_depth_weight,
+                use_depth, u0, v0, Z, e, wz, inside, scale_over_kept, bins, hist, hists, nv, m,
             )
-            hist[:] = 0
-            histogram(e, wz, 1.0, bins, hist, m)
             last_lev = lev
             m_last = m
             nkeep = _cumulate(hist, cum)
@@ -689,8 +798,9 @@ def minimize(
             if alpha != 1.0:
                 # r = alpha e + (1 - alpha) c* - beta has its own median: histogram it
                 hist[:] = 0
+                hmask = wz if scale_over_kept else inside
                 for i in range(m):
-                    if wz[i] > 0.0:
+                    if hmask[i] > 0.0:
                         hist[_hist_bin(alpha * e[i] + (1.0 - alpha) * csl[i] - beta)] += 1
                 _cumulate(hist, cum)
                 med = hist_median_abs(cum, hist, 0.0)
@@ -701,23 +811,24 @@ def minimize(
             # noise floor of the scale: on (near) noise-free images a tiny median would make
             # the informative high-gradient points outliers after sub-pixel misalignment
             scale = TUKEY_C * max(med, min_median, 1e-6)
-            accumulate(
-                Jl, e, csl, wz, alpha, 1.0 - alpha, beta, 1.0 / (scale * TUKEY_B), acc, m
+            _accumulate_pass(
+                Jl, e, csl, wz, alpha, 1.0 - alpha, beta, 1.0 / (scale * TUKEY_B), acc, accs, m
             )
             _unpack(acc, H, g, 1.0, False)
             if use_geo:
                 # combined photometric + point-to-plane (ICP-like) cost, each residual in
                 # units of its own robust scale (an extension; the paper is photometric)
                 M = _inverse(T) @ T_cd
-                ngk = sample_geometric(u0, v0, wz, P, N, depth, rays, M, rg, wg, m)
+                ngk = sample_geometric(u0, v0, wz, P, N, depth, rays, M, rg, wg, 0, m)
                 hist[:] = 0
-                histogram(rg, wg, GEO_UNIT, bins, hist, m)
+                histogram(rg, wg, GEO_UNIT, bins, hist, 0, m)
                 if ngk >= 12:
                     _cumulate(hist, cum)
                     medg = hist_median_abs(cum, hist, 0.0) / GEO_UNIT
                     scale_g = TUKEY_C * max(medg, min_geo_scale, 1e-9)
-                    accumulate(
-                        Jg, rg, zeros_g, wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc, m
+                    _accumulate_pass(
+                        Jg, rg, zeros_g, wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc,
+                        accs, m,
                     )
                     s_c = 1.0 / (scale * scale)
                     for a in range(6):

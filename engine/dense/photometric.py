@@ -284,6 +284,7 @@ def align(
     missing_depth_weight: float = 1.0,
     use_depth: bool = True,
     min_residual_scale: float = 0.0,
+    scale_over_kept: bool = True,
     brightness_offset: bool = False,
     geo_weight: float = 0.0,
     min_geo_scale_m: float = 0.001,
@@ -291,12 +292,16 @@ def align(
     brightness_gain: bool = False,
     stop_px: float = 0.0,
     level_fraction: tuple[float, float, float] = (1.0, 1.0, 1.0),
+    threads: int = 1,
 ) -> AlignResult:
     """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1).
 
-    ``level_fraction`` (fine to coarse): the share of the points used at each level (the
-    paper: all at every level); ``stop_px``: stop a level once an update moves the image by
-    less than this many pixels of that level (0: the fixed counts of the paper).
+    ``scale_over_kept``: the median of eq. (9) over the points the depth test keeps (else over
+    all that project into the image, the paper); ``level_fraction`` (fine to coarse): the
+    share of the points used at each level (the paper: all at every level); ``stop_px``: stop
+    a level once an update moves the image by less than this many pixels of that level (0:
+    the fixed counts of the paper); ``threads`` > 1 splits the passes over the points between
+    that many threads.
     """
     from engine.dense import kernels
 
@@ -306,7 +311,8 @@ def align(
     uv = np.empty((n, 2), dtype=np.float32)
     e = np.empty(n, dtype=np.float32)
     steps = np.zeros(_MAX_STEPS)
-    use_geo = geo_weight > 0 and ref.normals is not None and ref.Jg is not None
+    normals, Jg = ref.normals, ref.Jg
+    use_geo = geo_weight > 0 and normals is not None and Jg is not None
     level_n = np.array([max(1, round(f * n)) for f in level_fraction], dtype=np.int64)
     T, st = kernels.minimize(
         ref.P, ref.cstar, ref.J, pre.levels[0], pre.levels[1], pre.levels[2], pre.depth_m,
@@ -314,13 +320,14 @@ def align(
         np.asarray(iterations_fine_to_coarse, dtype=np.int64), level_n,
         np.ascontiguousarray(T0_cur_ref, dtype=np.float64), float(tau_m),
         float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
-        bool(brightness_offset), bool(brightness_gain and brightness_offset),
-        ref.normals if use_geo else _NO_N,
-        ref.Jg if use_geo else _NO_JG,
+        bool(scale_over_kept), bool(brightness_offset),
+        bool(brightness_gain and brightness_offset),
+        normals if use_geo and normals is not None else _NO_N,
+        Jg if use_geo and Jg is not None else _NO_JG,
         full_rays(intr) if use_geo else _NO_RAYS,
         float(geo_weight) if use_geo else 0.0, float(min_geo_scale_m),
         _NO_TCD if T_color_depth is None else np.ascontiguousarray(T_color_depth, np.float64),
-        float(stop_px), float(ref.z_median_m), w, uv, e, steps,
+        float(stop_px), float(ref.z_median_m), int(threads), w, uv, e, steps,
     )
     ok = bool(st[4] > 0.5) and bool(np.all(np.isfinite(T)))
     if ok:

@@ -102,6 +102,9 @@ class KeyframeStore:
         self.intrinsics = intrinsics
         self.keyframes: list[Keyframe] = list(keyframes or [])
         self._test_pts = frustum_test_points(intrinsics)
+        self._test_uv = _pinhole(intrinsics, self._test_pts)
+        # keyframe poses stacked for the search (K, 4, 4), rebuilt when keyframes are added
+        self._poses: F64 = np.zeros((0, 4, 4))
 
     def __len__(self) -> int:
         return len(self.keyframes)
@@ -165,26 +168,37 @@ class KeyframeStore:
         )
 
     # -- search, sec. 6.2 ------------------------------------------------------------------
+    def _stacked_poses(self) -> F64:
+        if self._poses.shape[0] != len(self.keyframes):
+            self._poses = np.stack([k.T_world_cam for k in self.keyframes])
+        return self._poses
+
+    def _angles_distances(self, T_world_cam: F64) -> tuple[F64, F64, F64, F64]:
+        """(theta_k rad, ||d_k|| m) of eq. (19)-(20) for every keyframe, with the relative
+        rotations and translations dT_k = T_kf_cam = T_kf_world T_world_cam."""
+        Tk = self._stacked_poses()
+        RkT = Tk[:, :3, :3].transpose(0, 2, 1)
+        d = T_world_cam[:3, 3] - Tk[:, :3, 3]
+        R_kc = RkT @ T_world_cam[:3, :3]
+        t_kc = (RkT @ d[:, :, None])[:, :, 0]
+        theta = rotation_angle_rad_batch(R_kc)
+        return theta, np.sqrt(np.sum(d * d, axis=1)), R_kc, t_kc
+
+    def _metric(self, R_kc: F64, t_kc: F64) -> F64:
+        """Eq. (21) for the given relative poses: mean pixel discrepancy of the test points."""
+        intr = self.intrinsics
+        q = self._test_pts @ R_kc.transpose(0, 2, 1) + t_kc[:, None, :]  # (K, n, 3)
+        z = np.maximum(q[..., 2], 1e-6)
+        du = intr.fx * q[..., 0] / z + intr.cx - self._test_uv[:, 0]
+        dv = intr.fy * q[..., 1] / z + intr.cy - self._test_uv[:, 1]
+        d = np.sqrt(du * du + dv * dv)
+        d[q[..., 2] <= 0.05] = 10.0 * (intr.width + intr.height)
+        return np.asarray(d.mean(axis=1))
+
     def _scores(self, T_world_cam: F64) -> tuple[F64, F64, F64]:
         """(theta_k rad, ||d_k|| m, eq. (21) metric px) of every keyframe, vectorised."""
-        Tk = np.stack([k.T_world_cam for k in self.keyframes])  # (K, 4, 4)
-        Rk = Tk[:, :3, :3]
-        tk = Tk[:, :3, 3]
-        R = T_world_cam[:3, :3]
-        t = T_world_cam[:3, 3]
-        # dT_k = T_kf_cam = T_kf_world T_world_cam, eq. (19)
-        R_kc = np.einsum("kji,jl->kil", Rk, R)
-        t_kc = np.einsum("kji,kj->ki", Rk, t - tk)
-        theta = rotation_angle_rad_batch(R_kc)
-        dist = np.linalg.norm(t - tk, axis=1)
-        P = self._test_pts
-        q = np.einsum("kij,nj->kni", R_kc, P) + t_kc[:, None, :]
-        intr = self.intrinsics
-        z = np.maximum(q[..., 2], 1e-6)
-        uv = np.stack([intr.fx * q[..., 0] / z + intr.cx, intr.fy * q[..., 1] / z + intr.cy], -1)
-        d = np.linalg.norm(uv - _pinhole(intr, P)[None], axis=2)
-        d[q[..., 2] <= 0.05] = 10.0 * (intr.width + intr.height)
-        return theta, dist, d.mean(axis=1)
+        theta, dist, R_kc, t_kc = self._angles_distances(T_world_cam)
+        return theta, dist, self._metric(R_kc, t_kc)
 
     def ranked(self, T_world_cam: F64) -> list[tuple[float, Keyframe]]:
         """All keyframes sorted by the eq. (21) metric from ``T_world_cam``."""
@@ -202,13 +216,23 @@ class KeyframeStore:
         Returns (keyframe, in_omega); when Omega is empty the overall nearest keyframe is
         returned with ``in_omega=False``.
         """
+        kf, in_omega, _ = self.nearest_with_metric(T_world_cam, theta_max_rad, d_max_m)
+        return kf, in_omega
+
+    def nearest_with_metric(
+        self, T_world_cam: F64, theta_max_rad: float, d_max_m: float
+    ) -> tuple[Keyframe | None, bool, float]:
+        """:meth:`nearest` and its eq. (21) metric (pixels; inf without keyframes). The
+        metric is evaluated only on Omega (the pre-selection prunes distant keyframes)."""
         if not self.keyframes:
-            return None, False
-        theta, dist, metric = self._scores(T_world_cam)
+            return None, False, float("inf")
+        theta, dist, R_kc, t_kc = self._angles_distances(T_world_cam)
         omega = (np.abs(theta) < theta_max_rad) & (dist < d_max_m)  # eq. (20)
-        pool = np.flatnonzero(omega) if omega.any() else np.arange(len(self.keyframes))
-        best = int(pool[np.argmin(metric[pool])])  # eq. (21)
-        return self.keyframes[best], bool(omega.any())
+        in_omega = bool(omega.any())
+        pool = np.flatnonzero(omega) if in_omega else np.arange(len(self.keyframes))
+        metric = self._metric(R_kc[pool], t_kc[pool])
+        k = int(np.argmin(metric))  # eq. (21)
+        return self.keyframes[int(pool[k])], in_omega, float(metric[k])
 
     def far_from_all(self, T_world_cam: F64, angle_rad: float, dist_m: float) -> bool:
         """True if the pose differs from every keyframe by more than the angle or distance."""

@@ -55,6 +55,8 @@ def _add_cli(parser: argparse.ArgumentParser) -> None:
         help="Gauss-Newton iterations coarse,mid,fine (default 2,3,10)",
     )
     g.add_argument("--tau", type=float, default=None, help="depth noise tau in metres")
+    g.add_argument("--threads", type=int, default=None, metavar="N",
+                   help="threads sharing each iteration's point passes (default 1)")
     g.add_argument(
         "--keyframes", default=None, metavar="DIR",
         help="keyframe store built by `studiotrack sweep` (tracker dense)",
@@ -74,6 +76,8 @@ def _params_from_cli(args: argparse.Namespace, params: Any) -> Any:
         upd.update(iterations_coarse=c, iterations_mid=m, iterations_fine=f)
     if getattr(args, "tau", None) is not None:
         upd["tau_m"] = args.tau
+    if getattr(args, "threads", None) is not None:
+        upd["threads"] = args.threads
     if getattr(args, "keyframes", None):
         upd["keyframes_dir"] = str(args.keyframes)
     return dataclasses.replace(params, **upd) if upd else params

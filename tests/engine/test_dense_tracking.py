@@ -151,3 +151,18 @@ def test_set_params_takes_effect_next_frame(scene: PlaneScene) -> None:
     assert res.overlay.points_uv is not None
     assert res.details.n_points == 1024
     assert res.overlay.points_uv.shape[0] <= 1024
+
+
+@pytest.mark.parametrize("name", ["dense", "dense-incremental"])
+def test_paper_preset_tracks_the_path(scene: PlaneScene, name: str) -> None:
+    """preset=paper (photometric cost, Tukey scale over all residuals, no extensions) still
+    tracks the small rendered path."""
+    params = DenseParams(n_points=N_POINTS).with_preset("paper")
+    params = dataclasses.replace(params, n_points=N_POINTS)
+    tr = get_spec(name).factory(params)
+    worst = 0.0
+    for i in range(0, 30, 2):
+        res = tr.track(scene.frame(i, _path(i)))
+        assert res.state == TrackState.TRACKING
+        worst = max(worst, _err(res.T_world_cam, _path(i))[0])
+    assert worst < 3e-3
