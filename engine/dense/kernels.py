@@ -87,7 +87,8 @@ def _cdf(cum: np.ndarray, hist: np.ndarray, x: float) -> float:
     if f >= 2 * HIST_NB:
         return float(cum[2 * HIST_NB])
     k = int(f)
-    return cum[k] + (f - k) * hist[k]
+    below: float = cum[k] + (f - k) * hist[k]
+    return below
 
 
 @njit(cache=True, nogil=True)

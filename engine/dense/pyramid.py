@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
+
 F32 = NDArray[np.float32]
 
 N_LEVELS = 3
@@ -33,7 +35,7 @@ def gray_u8(color_bgr: NDArray[np.uint8]) -> NDArray[np.uint8]:
 
     if color_bgr.ndim == 2:
         return np.asarray(color_bgr)
-    return cv2.cvtColor(color_bgr, cv2.COLOR_BGR2GRAY)
+    return u8(cv2.cvtColor(color_bgr, cv2.COLOR_BGR2GRAY))
 
 
 _GAUSS5 = np.array([1.0, 4.0, 6.0, 4.0, 1.0], dtype=np.float32) / 16.0

@@ -514,8 +514,8 @@ class DenseKeyframeTracker(_DenseBase):
         # a store: its keyframe pre-computations (Alg. 3) all at start-up, so that switching
         # keyframes later costs no frame time (about 3.5 ms per keyframe, once)
         t = time.perf_counter()
-        for kf in self._store.keyframes:
-            self._reference(kf)
+        for stored in self._store.keyframes:
+            self._reference(stored)
         timings["select"] = (time.perf_counter() - t) * 1e3
         # start at the known pose or the first keyframe (Alg. 3, T^ = I) and relocalise over
         # all keyframes nearest first
