@@ -28,6 +28,7 @@ from engine.records import (
 )
 from engine.results import Tracker
 from engine.sources.base import Source
+from engine.timecode import TimecodeClock
 
 __all__ = [
     "AddSink",
@@ -49,6 +50,7 @@ def run_tracking(
     max_frames: int | None = None,
     realtime: bool = False,
     sinks: Sequence[Sink] = (),
+    timecode: TimecodeClock | None = None,
 ) -> Generator[FrameRecord, None, None]:
     """Track every frame of ``source``; stop cooperatively when ``should_stop()`` is true.
 
@@ -59,5 +61,5 @@ def run_tracking(
     closed.
     """
     pipe = Pipeline(source, tracker, sinks, realtime=realtime, max_frames=max_frames,
-                    commands=commands)
+                    commands=commands, timecode=timecode)
     yield from pipe.records(should_stop)

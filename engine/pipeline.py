@@ -52,6 +52,7 @@ from engine.frames import FramePayload
 from engine.records import AddSink, Command, FrameRecord, RemoveSink, ResetTracker, SetParams
 from engine.results import TrackDetails, Tracker, TrackResult, TrackState
 from engine.sources.base import Source
+from engine.timecode import TimecodeClock, nearest_rate
 
 T = TypeVar("T")
 
@@ -378,6 +379,7 @@ class Pipeline:
         commands: queue.Queue[Command] | None = None,
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], None] = time.sleep,
+        timecode: TimecodeClock | None = None,
     ) -> None:
         self.source = source
         self.tracker = tracker
@@ -397,6 +399,10 @@ class Pipeline:
         own = (*_own_sinks(source), *_own_sinks(tracker))
         self._slots: list[_Slot] = [_Slot(s) for s in (*sinks, *own)]
         fps = float(getattr(source, "nominal_fps", 0.0) or 0.0)
+        #: every record's timecode: the source's, else generated from a start value at the
+        #: output rate (default 00:00:00:00 at the video rate nearest the source's)
+        self.timecode = timecode if timecode is not None else TimecodeClock(
+            rate=nearest_rate(fps))
         self.info = RunInfo(
             source_spec=source_spec or str(getattr(source, "name", "")),
             source_name=str(getattr(source, "name", source_spec)),
@@ -475,6 +481,7 @@ class Pipeline:
             sinks=tuple(s.health() for s in slots),
             error=error,
             last_record_mono_s=0.0 if last is None else last.done_mono_s,
+            timecode=None if last is None or last.timecode is None else str(last.timecode),
         )
 
     # --------------------------------------------------------------------- runs
@@ -684,6 +691,7 @@ class Pipeline:
                 capture_mono_s=frame.capture_mono_s, done_mono_s=done,
                 cpu_ms=(c1 - c0) * 1000.0, late_ms=late_s * 1000.0,
                 skipped_per_s=float(sum(n_skip for _, n_skip in skips)),
+                timecode=self.timecode.stamp(frame),
             )
             for slot in list(self._slots):
                 if slot.opened and not slot.failed:

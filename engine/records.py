@@ -12,6 +12,7 @@ from typing import Any
 
 from engine.frames import Frame
 from engine.results import TrackResult
+from engine.timecode import Timecode
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,3 +68,6 @@ class FrameRecord:
     late_ms: float = 0.0
     #: frames the live source skipped over the last second, per second (newest-frame policy)
     skipped_per_s: float = 0.0
+    #: SMPTE timecode of the frame: the source's own, else generated from the start value
+    #: at the output rate (:class:`engine.timecode.TimecodeClock`)
+    timecode: Timecode | None = None

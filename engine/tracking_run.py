@@ -86,6 +86,7 @@ def run_tracker(
     should_stop: Callable[[], bool] = lambda: False,
     on_record: Callable[[FrameRecord], None] | None = None,
     sinks: Sequence[Any] = (),
+    timecode: Any = None,
 ) -> TrackingRun:
     """Track ``source`` with ``tracker`` to the end (or ``max_frames``) and collect the run.
 
@@ -100,7 +101,7 @@ def run_tracker(
     nan44 = np.full((4, 4), np.nan)
     nan4 = np.full(4, np.nan)
     for rec in run_tracking(source, tracker, should_stop=should_stop, max_frames=max_frames,
-                            sinks=sinks):
+                            sinks=sinks, timecode=timecode):
         res, fr = rec.result, rec.frame
         if fr.payload(Heartbeat) is not None:
             continue  # a live source's "nothing new": not a frame of the run

@@ -30,8 +30,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from engine.camera import Intrinsics
+from engine.lens import LensState
 from engine.outputs import OutputError
 from engine.outputs.studio_frame import StudioPose
+from engine.timecode import Timecode
 
 IDENTIFIER = b"OTrk"
 HEADER_LENGTH = 16
@@ -108,11 +110,24 @@ def _rational(rate_hz: float) -> dict[str, int]:
     return {"num": max(1, min(round(rate_hz * 1000), 2147483647)), "denom": 1000}
 
 
-def lens_block(intr: Intrinsics | None, lens: LensInfo) -> dict[str, Any]:
-    """``lens`` object: pinhole focal length, projection offset, Brown-Conrady distortion."""
+def lens_block(intr: Intrinsics | None, lens: LensInfo,
+               state: LensState | None = None) -> dict[str, Any]:
+    """``lens`` object: pinhole focal length, projection offset, Brown-Conrady distortion;
+    with a lens file's ``state`` (zoom/focus encoders) also the entrance-pupil offset and
+    the encoders (normalised and raw), and the intrinsics and sensor width are the state's."""
     out: dict[str, Any] = {}
+    sensor_width_mm = lens.sensor_width_mm
+    if state is not None:
+        intr = state.intrinsics
+        sensor_width_mm = state.sensor_width_mm
+        out["entrancePupilOffset"] = float(state.entrance_pupil_m)
+        out["encoders"] = {"zoom": float(state.zoom_norm), "focus": float(state.focus_norm)}
+        raw = {"zoom": int(state.zoom_raw), "focus": int(state.focus_raw)}
+        if state.iris_raw is not None:
+            raw["iris"] = int(state.iris_raw)
+        out["rawEncoders"] = raw
     if intr is not None:
-        pitch_mm = lens.sensor_width_mm / intr.width
+        pitch_mm = sensor_width_mm / intr.width
         out["pinholeFocalLength"] = intr.fx * pitch_mm
         # Principal point offset from the image centre on the sensor, mm (y up).
         out["projectionOffset"] = {
@@ -143,6 +158,8 @@ class SampleInputs:
     intrinsics: Intrinsics | None = None
     recording: bool = False
     transform_id: str = "Camera"  # "Talent" for the presenter's position
+    lens: LensState | None = None  # the lens file at the frame's encoders
+    timecode: Timecode | None = None  # SMPTE timecode of the sample
 
 
 @dataclass(frozen=True, slots=True)
@@ -166,15 +183,13 @@ class SampleBuilder:
         static: dict[str, Any] = {
             "tracker": {"make": self.tracker_make, "model": self.tracker_model}
         }
-        if s.intrinsics is not None:
+        intr = s.lens.intrinsics if s.lens is not None else s.intrinsics
+        sensor_w = s.lens.sensor_width_mm if s.lens is not None else self.lens.sensor_width_mm
+        if intr is not None:
             static["camera"] = {
-                "activeSensorResolution": {
-                    "width": s.intrinsics.width, "height": s.intrinsics.height
-                },
+                "activeSensorResolution": {"width": intr.width, "height": intr.height},
                 "activeSensorPhysicalDimensions": {
-                    "width": self.lens.sensor_width_mm,
-                    "height": self.lens.sensor_width_mm * s.intrinsics.height
-                    / s.intrinsics.width,
+                    "width": sensor_w, "height": sensor_w * intr.height / intr.width,
                 },
             }
         sample: dict[str, Any] = {
@@ -198,7 +213,9 @@ class SampleBuilder:
                 }
             ],
         }
-        lens = lens_block(s.intrinsics, self.lens)
+        if s.timecode is not None:
+            sample["timing"]["timecode"] = s.timecode.to_opentrackio()
+        lens = lens_block(s.intrinsics, self.lens, s.lens)
         if lens:
             sample["lens"] = lens
         return sample

@@ -30,13 +30,15 @@ from typing import Any
 import numpy as np
 
 from engine.camera import Intrinsics
+from engine.lens import LensState
 from engine.outputs import OutputError
 from engine.outputs import freed as fd
 from engine.outputs import opentrackio as otio
-from engine.outputs.studio_frame import StudioFrame, StudioPose
+from engine.outputs.studio_frame import CameraOffset, StudioFrame, StudioPose
 from engine.outputs.talent import TalentPosition, TalentSettings
 from engine.outputs.timing import DelayCompensator, DelayParams
 from engine.params import Params, param
+from engine.timecode import Timecode
 
 PROTOCOLS = ("freed", "opentrackio")
 
@@ -97,10 +99,13 @@ class FreeDSettings(Params):
 
     camera_id: int = param(1, lo=0, hi=255, step=1, help="FreeD camera id (0-255)")
     lens_mapping: fd.ZoomFocusMapping = param(
-        fd.ZoomFocusMapping.MM_X100, help="how the zoom and focus fields are filled: the raw "
-        "values below, or focal length and focus distance in mm x 100 / mm x 64")
-    zoom_raw: int = param(0, lo=0, hi=0xFFFFFF, help="zoom field when mapping is raw")
-    focus_raw: int = param(0, lo=0, hi=0xFFFFFF, help="focus field when mapping is raw")
+        fd.ZoomFocusMapping.MM_X100, help="how the zoom and focus fields are filled: raw "
+        "lens encoder counts (the frame's, else the values below), or focal length and "
+        "focus distance in mm x 100 / mm x 64")
+    zoom_raw: int = param(0, lo=0, hi=0xFFFFFF, help="zoom field when mapping is raw and "
+                          "the frame has no lens encoders")
+    focus_raw: int = param(0, lo=0, hi=0xFFFFFF, help="focus field when mapping is raw and "
+                           "the frame has no lens encoders")
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +119,8 @@ class OutputConfig:
     delays: DelayParams = field(default_factory=DelayParams)
     studio: StudioFrame = field(default_factory=StudioFrame)
     talent: TalentSettings = field(default_factory=TalentSettings)
+    #: tracked point -> camera nodal point, applied before the studio frame
+    offset: CameraOffset = field(default_factory=CameraOffset)
     queue_size: int = 64
     rate_hz: float | None = None  # on-air output rate; None: the source's frame rate
 
@@ -148,6 +155,8 @@ class OutputSample:
     done_mono_s: float = 0.0
     #: "camera" or "talent" (the presenter's position: engine.outputs.talent)
     subject: str = "camera"
+    lens: LensState | None = None  # lens file at the frame's encoders
+    timecode: Timecode | None = None  # the record's SMPTE timecode
 
     def __post_init__(self) -> None:
         if self.T_world_cam is not None and self.T_world_cam.flags.writeable:
@@ -354,9 +363,18 @@ class _Target:
 
 
 def freed_packet(pose: StudioPose, settings: FreeDSettings, intr: Intrinsics | None,
-                 lens: otio.LensInfo) -> bytes:
-    """D1 packet of a studio pose (conventions in :mod:`engine.outputs.studio_frame`)."""
-    focal_mm = intr.fx * lens.sensor_width_mm / intr.width if intr is not None else None
+                 lens: otio.LensInfo, state: LensState | None = None) -> bytes:
+    """D1 packet of a studio pose (conventions in :mod:`engine.outputs.studio_frame`).
+
+    With a lens ``state`` (the lens file at the frame's encoders) the raw mapping sends the
+    same encoder counts the lens file was evaluated at, and the mm mappings its focal
+    length."""
+    if state is not None:
+        focal_mm: float | None = state.focal_length_mm
+        zoom_raw, focus_raw = state.zoom_raw, state.focus_raw
+    else:
+        focal_mm = intr.fx * lens.sensor_width_mm / intr.width if intr is not None else None
+        zoom_raw, focus_raw = settings.zoom_raw, settings.focus_raw
     focus_mm = lens.focus_distance_m * 1000.0 if lens.focus_distance_m else None
     return fd.encode_d1(
         fd.FreeDPose(
@@ -367,8 +385,8 @@ def freed_packet(pose: StudioPose, settings: FreeDSettings, intr: Intrinsics | N
             x_mm=pose.x_m * 1000.0,
             y_mm=pose.y_m * 1000.0,
             z_mm=pose.z_m * 1000.0,
-            zoom=fd.lens_field(settings.lens_mapping, settings.zoom_raw, focal_mm),
-            focus=fd.lens_field(settings.lens_mapping, settings.focus_raw, focus_mm),
+            zoom=fd.lens_field(settings.lens_mapping, zoom_raw, focal_mm),
+            focus=fd.lens_field(settings.lens_mapping, focus_raw, focus_mm),
         )
     )
 
@@ -436,6 +454,7 @@ class OutputSet:
         self.ticks = 0
         self.held_ticks = 0
         self.lost_ticks = 0
+        self._last_tc: Timecode | None = None
         if start:
             self.start()
 
@@ -518,7 +537,8 @@ class OutputSet:
         period = 1.0 / self._rate_hz if self._rate_hz > 0 else 1.0 / 30.0
         self.submit(replace(last, seq=last.seq + 1, timestamp_s=last.timestamp_s + period,
                             state="LOST", wall_time_s=time.time(), submit_mono_s=0.0,
-                            capture_mono_s=0.0, done_mono_s=0.0))
+                            capture_mono_s=0.0, done_mono_s=0.0,
+                            timecode=None if last.timecode is None else last.timecode.plus(1)))
 
     def submit_record(self, record: Any) -> None:
         """Queue an :class:`engine.loop.FrameRecord`: the camera pose of pose trackers, or
@@ -544,6 +564,8 @@ class OutputSet:
                 capture_mono_s=float(getattr(record, "capture_mono_s", 0.0) or 0.0),
                 done_mono_s=float(getattr(record, "done_mono_s", 0.0) or 0.0),
                 subject=subject,
+                lens=record.frame.payload(LensState) if subject == "camera" else None,
+                timecode=getattr(record, "timecode", None),
             )
         )
 
@@ -615,6 +637,8 @@ class OutputSet:
     def _ingest(self, sample: OutputSample, cfg: OutputConfig) -> bool:
         """Put a sample's pose into the delay history; False if nothing can be sent yet."""
         T = sample.T_world_cam
+        if T is not None and sample.subject == "camera":
+            T = cfg.offset.apply(T)  # tracked point -> nodal point, before the studio frame
         good = sample.state in ("TRACKING", "DEGRADED") and T is not None
         pose = cfg.studio.studio_pose(T) if good and T is not None else None
         if T is not None and not good and not self._comp.has_pose:
@@ -666,7 +690,7 @@ class OutputSet:
                                 None, cfg.lens)
                         else:
                             freed_bytes = freed_packet(pose, cfg.freed, sample.intrinsics,
-                                                       cfg.lens)
+                                                       cfg.lens, sample.lens)
                     t.send([freed_bytes])
                 else:
                     enc = t.spec.encoding
@@ -683,6 +707,8 @@ class OutputSet:
                                             else None),
                                 transform_id=("Camera" if sample.subject == "camera"
                                               else cfg.talent.transform_id),
+                                lens=sample.lens if sample.subject == "camera" else None,
+                                timecode=sample.timecode,
                             )
                         )
                         otio_payloads[enc] = otio.encode_payload(sample_dict, enc)
@@ -767,8 +793,15 @@ class OutputSet:
             self.held_ticks += 1
         if stale:
             self.lost_ticks += 1
-        # latency is counted once, for the slot that carried the fresh pose
+        # latency is counted once, for the slot that carried the fresh pose; a held slot is the
+        # next video frame: its timecode counts on from the last one sent
+        tc = newest.timecode
+        if not self._fresh and self._last_tc is not None:
+            tc = self._last_tc.plus(1)
         carry = newest if self._fresh else replace(newest, capture_mono_s=0.0, done_mono_s=0.0)
+        if tc is not carry.timecode:
+            carry = replace(carry, timecode=tc)
+        self._last_tc = tc
         self._emit(timed.pose, state, carry, cfg, targets)
         self._fresh = False
 

@@ -28,6 +28,29 @@ order          intrinsic Z-X-Y: R = Rz(pan) Rx(tilt) Ry(roll) applied to the zer
 camera axes to (right, forward, up); this is exactly :func:`engine.geometry.pan_tilt_roll_deg`.
 Near tilt = +-90 degrees pan and roll are not separable (gimbal lock); outputs then carry the
 decomposition geometry returns (roll absorbs the remainder).
+
+Where the studio origin comes from (all give ``T_world_studio``, saved in the project):
+
+=========================  ====================================================================
+three floor points         origin, a point on +X, a point on the +Y side (:meth:`StudioFrame.
+                           from_floor_points`); Z is the floor normal, up
+the DLT calibration        the calibration points' own frame becomes the studio frame
+                           (:meth:`StudioFrame.from_dlt`): the points were measured in studio
+                           coordinates (x right, y away from the camera, z up, metres)
+a clicked 3D-view point    the origin moves to the point, the axes stay
+                           (:meth:`StudioFrame.with_origin_at`)
+=========================  ====================================================================
+
+The *nodal offset* (:class:`CameraOffset`) is the rigid transform from the tracked point to
+the camera's nodal point (entrance pupil at the calibration zoom), ``T_tracked_nodal``, in the
+tracked camera's OpenCV axes (x right, y down, z forward, metres; rotation as pan/tilt/roll
+degrees about those axes). It is applied before every output, before the studio frame::
+
+    T_world_nodal = T_world_tracked @ T_tracked_nodal
+    T_studio_nodal = inv(T_world_studio) @ T_world_nodal
+
+A zoom-dependent entrance pupil (lens file) is *not* added to the pose: OpenTrackIO carries it
+as ``lens.entrancePupilOffset`` for the render engine to apply; FreeD has no field for it.
 """
 
 from __future__ import annotations
@@ -142,6 +165,34 @@ class StudioFrame:
         pan, tilt, roll = pan_tilt_roll_deg(T[:3, :3])
         return StudioPose(float(T[0, 3]), float(T[1, 3]), float(T[2, 3]), pan, tilt, roll)
 
+    @staticmethod
+    def from_dlt(T_world_cam: F64, R_cam_dlt: F64, t_cam_dlt: F64) -> StudioFrame:
+        """The DLT's world (its calibration points' frame) as the studio frame.
+
+        ``R_cam_dlt``, ``t_cam_dlt`` map DLT-world points into the camera
+        (:class:`engine.ptz.dlt.DltDecomposition`); ``T_world_cam`` is the tracker's pose of
+        that camera when the DLT image was taken (identity when the tracker's world is the
+        DLT's, as for the pan-tilt tracker)."""
+        R = np.asarray(R_cam_dlt, dtype=np.float64)
+        t = np.asarray(t_cam_dlt, dtype=np.float64).reshape(3)
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or not np.all(np.isfinite(t)):
+            raise OutputError("studio frame from DLT: rotation must be a finite 3x3 matrix")
+        U, _, Vt = np.linalg.svd(R)
+        R = U @ Vt
+        if np.linalg.det(R) < 0:
+            raise OutputError("studio frame from DLT: the rotation is a reflection")
+        T_cam_dlt = make_T(R, t)
+        return StudioFrame.from_matrix(np.asarray(T_world_cam, dtype=np.float64) @ T_cam_dlt)
+
+    def with_origin_at(self, p_world: F64) -> StudioFrame:
+        """The same axes with the origin moved to a world point (a clicked 3D-view point)."""
+        p = np.asarray(p_world, dtype=np.float64).reshape(-1)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise OutputError(f"studio origin {p_world!r} is not a finite 3D point")
+        T = self.matrix.copy()
+        T[:3, 3] = p
+        return StudioFrame.from_matrix(T)
+
     def to_json_dict(self) -> dict[str, Any]:
         return {"T_world_studio": [list(r) for r in self.T_world_studio]}
 
@@ -151,3 +202,72 @@ class StudioFrame:
             return StudioFrame.from_matrix(np.asarray(d["T_world_studio"], dtype=np.float64))
         except (KeyError, TypeError, ValueError) as exc:
             raise OutputError(f"studio frame JSON is malformed ({exc})") from None
+
+
+@dataclass(frozen=True, slots=True)
+class CameraOffset:
+    """Tracked point -> camera nodal point, ``T_tracked_nodal`` (see the module docstring).
+
+    Translation in metres along the tracked camera's axes (x right, y down, z forward);
+    rotation in degrees with the output convention (pan positive left, tilt positive up,
+    roll positive clockwise seen from behind) relative to the tracked camera's own axes.
+    """
+
+    x_m: float = 0.0
+    y_m: float = 0.0
+    z_m: float = 0.0
+    pan_deg: float = 0.0
+    tilt_deg: float = 0.0
+    roll_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("x_m", "y_m", "z_m", "pan_deg", "tilt_deg", "roll_deg"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise OutputError(f"nodal offset {name}: {v!r} is not a finite number")
+        if max(abs(self.x_m), abs(self.y_m), abs(self.z_m)) > 10.0:
+            raise OutputError("nodal offset: a translation over 10 m is not a camera offset")
+
+    @property
+    def is_identity(self) -> bool:
+        return not any((self.x_m, self.y_m, self.z_m, self.pan_deg, self.tilt_deg,
+                        self.roll_deg))
+
+    @property
+    def T_tracked_nodal(self) -> F64:
+        """4x4 in the tracked camera's OpenCV axes."""
+        # pan/tilt/roll as in the studio convention, expressed in camera axes: R_base maps
+        # OpenCV axes to (right, forward, up); the offset's rotation is R_base^T R R_base
+        base = R_from_pan_tilt_roll_deg(0.0, 0.0, 0.0)
+        R = base.T @ R_from_pan_tilt_roll_deg(self.pan_deg, self.tilt_deg, self.roll_deg)
+        return make_T(R, np.array([self.x_m, self.y_m, self.z_m]))
+
+    def apply(self, T_world_tracked: F64) -> F64:
+        if self.is_identity:
+            return np.asarray(T_world_tracked, dtype=np.float64)
+        return np.asarray(T_world_tracked, dtype=np.float64) @ self.T_tracked_nodal
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"x_m": self.x_m, "y_m": self.y_m, "z_m": self.z_m, "pan_deg": self.pan_deg,
+                "tilt_deg": self.tilt_deg, "roll_deg": self.roll_deg}
+
+    @staticmethod
+    def from_json_dict(d: Any, where: str = "nodal offset") -> CameraOffset:
+        if not isinstance(d, dict):
+            raise OutputError(f"{where}: expected an object, got {type(d).__name__}")
+        known = ("x_m", "y_m", "z_m", "pan_deg", "tilt_deg", "roll_deg")
+        unknown = sorted(set(d) - set(known))
+        if unknown:
+            raise OutputError(f"{where}: unknown field {unknown[0]!r} (fields: "
+                              f"{', '.join(known)})")
+        kw = {}
+        for k in known:
+            v = d.get(k, 0.0)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise OutputError(f"{where}.{k}: {v!r} is not a finite number")
+            kw[k] = float(v)
+        try:
+            return CameraOffset(**kw)
+        except OutputError as exc:
+            raise OutputError(f"{where}: {str(exc).removeprefix('nodal offset').strip(': ')}"
+                              ) from None

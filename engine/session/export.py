@@ -18,7 +18,7 @@ from engine.session.reader import pose_of
 
 CSV_COLUMNS = ("seq", "index", "timestamp_s", "state", "tx", "ty", "tz", "qx", "qy", "qz",
                "qw", "pan_deg", "tilt_deg", "roll_deg", "residual", "inlier_fraction",
-               "process_ms")
+               "process_ms", "timecode")
 
 
 def finite_pose(rec: dict[str, Any]) -> np.ndarray | None:
@@ -49,7 +49,7 @@ def _rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                        strict=True)),
             "pan_deg": pan, "tilt_deg": tilt, "roll_deg": roll,
             "residual": r.get("residual"), "inlier_fraction": r.get("inlier_fraction"),
-            "process_ms": r.get("process_ms"),
+            "process_ms": r.get("process_ms"), "timecode": r.get("timecode"),
         })
     return rows
 
@@ -77,6 +77,7 @@ def json_text(records: Sequence[dict[str, Any]]) -> str:
     for r in records:
         T = finite_pose(r)
         out.append({"seq": r["seq"], "timestamp_s": r["timestamp_s"], "state": r.get("state"),
+                    "timecode": r.get("timecode"), "timecode_rate": r.get("timecode_rate"),
                     "T_world_cam": None if T is None else np.asarray(T).tolist()})
     return json.dumps({"format": "studiotrack-trajectory", "version": 1, "poses": out},
                       indent=1) + "\n"

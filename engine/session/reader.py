@@ -228,6 +228,7 @@ class SessionSource(Source):
                     depth_m=frame.depth_m,
                     gt_T_world_cam=_gt(rec),
                     gt_box_xywh=_box(rec.get("gt_box_xywh")),
+                    payloads=self._timecode(rec),
                 )
             return
         scale = self.index.intrinsics.depth_scale if self.index.intrinsics else 5000.0
@@ -256,7 +257,22 @@ class SessionSource(Source):
                 gt_T_world_cam=_gt(rec),
                 gt_box_xywh=_box(rec.get("gt_box_xywh")),
                 depth_timestamp_s=_opt_float(rec.get("depth_timestamp_s")),
+                payloads=self._timecode(rec),
             )
+
+    def _timecode(self, rec: dict[str, Any]) -> tuple[Any, ...]:
+        """The recorded timecode as the replayed frame's own (a session keeps its timecode)."""
+        tc = rec.get("timecode")
+        if tc is None:
+            return ()
+        from engine.timecode import SourceTimecode, TimecodeError, parse_timecode
+
+        try:
+            return (SourceTimecode(parse_timecode(str(tc), rec.get("timecode_rate") or "25",
+                                                  where="timecode")),)
+        except TimecodeError as exc:
+            raise SessionError(f"{self.dir / 'records.jsonl'}: record {rec.get('seq')}: "
+                               f"{exc}") from None
 
     def close(self) -> None:
         if self._video is not None:

@@ -185,6 +185,10 @@ class SessionRecorder:
             else [float(v) for v in frame.gt_T_world_cam.reshape(-1)],
             "gt_box_xywh": to_jsonable(frame.gt_box_xywh),
             "depth_timestamp_s": to_jsonable(frame.depth_timestamp_s),
+            "timecode": None if getattr(record, "timecode", None) is None
+            else str(record.timecode),
+            "timecode_rate": None if getattr(record, "timecode", None) is None
+            else record.timecode.rate,
             "color_file": False,
             "depth_file": False,
         }
