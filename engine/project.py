@@ -15,12 +15,22 @@ annotate, bundle-adjust). Layout::
         annotations.json    annotated points: observations per keyframe, 3D point
         presenter.json      presenter models slot (JSON objects by name)
         params.json         parameter groups (JSON objects by group name)
+        lens.json           lens file over zoom/focus (engine.lens format), optional
+        studio.json         studio frame and nodal offset ({"format": "studiotrack-studio",
+                            "version": 1, "T_world_studio": 4x4 | null,
+                            "nodal_offset": {x_m, y_m, z_m, pan_deg, tilt_deg, roll_deg}})
+        ptz.json            pan-tilt calibration chain (engine.ptz.calibration format), optional
     rev-0002/           the previous revision = the backup of the previous version
 
 Saving writes a new ``rev-NNNN`` folder through a temporary name, renames it, then replaces
 ``project.json`` atomically (the commit point): a crash at any moment leaves the previous
 version loadable. Only after the commit are revisions older than the previous one removed.
 Opening never writes anything.
+
+Set-up documents (lens file, studio frame and nodal offset, pan-tilt calibration) are one
+versioned JSON file each, read with :func:`read_document` (missing = not set, anything
+malformed = one line naming the file and field); a newer version than this StudioTrack
+knows is refused, never guessed.
 """
 
 from __future__ import annotations
@@ -48,6 +58,8 @@ INDEX_NAME = "project.json"
 #: revisions are numbered 1..MAX_REVISION (rev-NNNN folder names stay short)
 MAX_REVISION = 999_999_999
 ANNOTATIONS_FORMAT = "studiotrack-annotations"
+STUDIO_FORMAT = "studiotrack-studio"
+STUDIO_VERSION = 1
 
 
 class ProjectError(StudioTrackError):
@@ -101,6 +113,14 @@ class Project:
     annotations: list[AnnotatedPoint] = field(default_factory=list)
     presenter_models: dict[str, Any] = field(default_factory=dict)
     params: dict[str, Any] = field(default_factory=dict)
+    #: engine.lens.LensFile (may be incomplete while being calibrated) or None
+    lens: Any | None = None
+    #: engine.outputs.studio_frame.StudioFrame or None (identity)
+    studio_frame: Any | None = None
+    #: engine.outputs.studio_frame.CameraOffset or None (none)
+    nodal_offset: Any | None = None
+    #: engine.ptz.calibration.PtzCalibration or None
+    ptz: Any | None = None
     folder: Path | None = None
     revision: int = 0
     dirty: bool = False
@@ -198,6 +218,28 @@ class Project:
         )
         atomic_write_json(data / "presenter.json", {"version": 1, "models": self.presenter_models})
         atomic_write_json(data / "params.json", {"version": 1, "groups": self.params})
+        if self.lens is not None:
+            atomic_write_json(data / "lens.json", self.lens.to_json())
+        if self.studio_frame is not None or self.nodal_offset is not None:
+            atomic_write_json(data / "studio.json", {
+                "format": STUDIO_FORMAT, "version": STUDIO_VERSION,
+                "T_world_studio": None if self.studio_frame is None
+                else self.studio_frame.to_json_dict()["T_world_studio"],
+                "nodal_offset": None if self.nodal_offset is None
+                else self.nodal_offset.to_json_dict(),
+            })
+        if self.ptz is not None:
+            atomic_write_json(data / "ptz.json", self.ptz.to_json())
+
+    def output_config(self, config: Any) -> Any:
+        """``config`` (an :class:`engine.outputs.sender.OutputConfig`) with this project's
+        studio frame and nodal offset."""
+        from dataclasses import replace
+
+        from engine.outputs.studio_frame import CameraOffset, StudioFrame
+
+        return replace(config, studio=self.studio_frame or StudioFrame(),
+                       offset=self.nodal_offset or CameraOffset())
 
 
 def new_project(name: str = "studio", intrinsics: Intrinsics | None = None) -> Project:
@@ -264,6 +306,7 @@ def open_project(folder: str | Path) -> Project:
         raise ProjectError(f"{data / 'presenter.json'}: expected {{'models': {{...}}}}")
     if not isinstance(params, dict) or not isinstance(params.get("groups"), dict):
         raise ProjectError(f"{data / 'params.json'}: expected {{'groups': {{...}}}}")
+    lens, studio_frame, nodal, ptz = _read_setup(data)
     return Project(
         name=str(index.get("name", folder.name)),
         intrinsics=intr if intr is not None else (store.intrinsics if store is not None else None),
@@ -272,10 +315,69 @@ def open_project(folder: str | Path) -> Project:
         annotations=points,
         presenter_models=dict(pres["models"]),
         params=dict(params["groups"]),
+        lens=lens,
+        studio_frame=studio_frame,
+        nodal_offset=nodal,
+        ptz=ptz,
         folder=folder,
         revision=int(index["revision"]),
         dirty=False,
     )
+
+
+def read_document(path: Path, fmt: str, version: int) -> dict[str, Any] | None:
+    """A set-up document: None when the file is absent; its JSON object once the format is
+    ``fmt`` and the version a known one (else one-line :class:`ProjectError`)."""
+    if not path.exists():
+        return None
+    raw = _read_json(path)
+    if not isinstance(raw, dict) or raw.get("format") != fmt:
+        raise ProjectError(f"{path}: not a {fmt} file")
+    ver = raw.get("version")
+    if isinstance(ver, bool) or not isinstance(ver, int) or ver < 1:
+        raise ProjectError(f"{path}: 'version' must be a positive integer, got {ver!r}")
+    if ver > version:
+        raise ProjectError(f"{path}: version {ver} is newer than this StudioTrack supports "
+                           f"({version})")
+    return raw
+
+
+def _read_setup(data: Path) -> tuple[Any, Any, Any, Any]:
+    """Lens file, studio frame, nodal offset and pan-tilt calibration of a revision."""
+    from engine.lens import LENS_FORMAT, LENS_VERSION, LensError, LensFile
+    from engine.outputs import OutputError
+    from engine.outputs.studio_frame import CameraOffset, StudioFrame
+
+    lens = None
+    raw = read_document(data / "lens.json", LENS_FORMAT, LENS_VERSION)
+    if raw is not None:
+        try:  # a table being calibrated one sample at a time may be incomplete
+            lens = LensFile.from_json(raw, str(data / "lens.json"), require_complete=False)
+        except LensError as exc:
+            raise ProjectError(str(exc)) from None
+    studio_frame = nodal = None
+    raw = read_document(data / "studio.json", STUDIO_FORMAT, STUDIO_VERSION)
+    if raw is not None:
+        where = str(data / "studio.json")
+        try:
+            if raw.get("T_world_studio") is not None:
+                studio_frame = StudioFrame.from_json_dict(
+                    {"T_world_studio": raw["T_world_studio"]})
+            if raw.get("nodal_offset") is not None:
+                nodal = CameraOffset.from_json_dict(raw["nodal_offset"], f"{where}: nodal_offset")
+        except OutputError as exc:
+            msg = str(exc)
+            raise ProjectError(msg if msg.startswith(where) else f"{where}: {msg}") from None
+    ptz = None
+    from engine.ptz.calibration import PTZ_FORMAT, PTZ_VERSION, PtzCalibration
+
+    raw = read_document(data / "ptz.json", PTZ_FORMAT, PTZ_VERSION)
+    if raw is not None:
+        try:
+            ptz = PtzCalibration.from_json(raw, str(data / "ptz.json"))
+        except CalibrationError as exc:
+            raise ProjectError(str(exc)) from None
+    return lens, studio_frame, nodal, ptz
 
 
 def _read_json(path: Path) -> Any:

@@ -5,6 +5,13 @@ and their settings; ``config_from_args(args)`` the :class:`engine.outputs.sender
 (None when no output was asked for; a host that does not resolve is refused in one line),
 ``output_sink(args)`` the :class:`engine.sinks.pose_output.PoseOutputSink` a pipeline feeds
 (one packet per record for headless runs; ``--output-rate HZ`` clocks them at that rate).
+
+``add_setup_arguments(parser)`` adds the studio set-up: ``--project DIR`` (lens file, studio
+frame, nodal offset, pan-tilt calibration), ``--lens FILE``, typed ``--lens-zoom/--lens-focus``
+encoders, ``--timecode-start/--timecode-rate``, and a real head (``--head visca:HOST``,
+``--head-position freed:PORT|visca``); ``setup_source(args, source)`` wraps the source
+(lens file, head readings and commands), ``timecode_clock(args, source)`` gives the
+records' timecode.
 """
 
 from __future__ import annotations
@@ -77,6 +84,98 @@ def add_output_arguments(parser: argparse.ArgumentParser) -> None:
                    "from the output clock instead of one packet per tracked frame")
 
 
+def add_setup_arguments(parser: argparse.ArgumentParser) -> None:
+    g = parser.add_argument_group("studio set-up (lens, offsets, timecode, head)")
+    g.add_argument("--project", type=Path, default=None, metavar="DIR",
+                   help="studio project: its lens file, studio frame, nodal offset and "
+                   "pan-tilt calibration are used (the ptz tracker uses the calibration)")
+    g.add_argument("--lens", type=Path, default=None, metavar="FILE.json",
+                   help="lens file (zoom/focus table); overrides the project's")
+    g.add_argument("--lens-zoom", type=int, default=None, metavar="RAW",
+                   help="zoom encoder value for frames that carry none (typed)")
+    g.add_argument("--lens-focus", type=int, default=0, metavar="RAW",
+                   help="focus encoder value for frames that carry none (typed)")
+    g.add_argument("--timecode-start", default=None, metavar="HH:MM:SS:FF",
+                   help="first generated timecode (default 00:00:00:00; a source with its "
+                   "own timecode keeps it)")
+    g.add_argument("--timecode-rate", default=None, metavar="RATE",
+                   help="timecode rate: 23.976, 24, 25, 29.97 (drop frame), 30, 50, 59.94 "
+                   "(drop frame), 60 (default: --output-rate, else nearest the source's)")
+    g.add_argument("--head", default=None, metavar="visca:HOST[:PORT]",
+                   help="drive a VISCA-over-IP PTZ camera with the tracker's pan-tilt commands")
+    g.add_argument("--head-position", default=None, metavar="freed:PORT|visca",
+                   help="where the head's angles come from: its FreeD output on PORT, or "
+                   "the VISCA position inquiry (default: none)")
+
+
+def load_project(args: argparse.Namespace) -> Any:
+    """The ``--project`` (None without one); a bad project is one line."""
+    folder = getattr(args, "project", None)
+    if folder is None:
+        return None
+    from engine.project import open_project
+
+    return open_project(folder)
+
+
+def setup_source(args: argparse.Namespace, source: Any) -> Any:
+    """``source`` with the head (``--head``/``--head-position``) and the lens file
+    (``--lens`` or the project's) applied."""
+    head_spec = getattr(args, "head", None)
+    pos_spec = getattr(args, "head_position", None)
+    if head_spec or pos_spec:
+        from engine.ptz.head_io import HeadedSource
+        from engine.ptz.visca import ViscaError
+        from engine.ptz.visca_head import parse_head_spec
+
+        driver = parse_head_spec(head_spec) if head_spec else None
+        position: Any = None
+        if pos_spec == "visca":
+            if driver is None:
+                raise ViscaError("--head-position visca needs --head visca:HOST")
+            position = driver
+        elif pos_spec:
+            kind, _, port = pos_spec.partition(":")
+            if kind != "freed" or not port.strip().isdigit():
+                raise ViscaError(f"--head-position {pos_spec!r}: expected freed:PORT or visca")
+            from engine.outputs.freed_input import FreeDListener
+
+            position = FreeDListener(int(port))
+        source = HeadedSource(source, driver, position)
+    lens = None
+    lens_path = getattr(args, "lens", None)
+    if lens_path is not None:
+        from engine.lens import LensFile
+
+        lens = LensFile.load(lens_path)
+    else:
+        proj = load_project(args)
+        if proj is not None and proj.lens is not None:
+            lens = proj.lens
+            lens.check_complete(f"{args.project}: lens file")
+    if lens is not None:
+        from engine.sources.lensed import LensedSource
+
+        zoom = getattr(args, "lens_zoom", None)
+        typed = None if zoom is None else (int(zoom), int(getattr(args, "lens_focus", 0)))
+        log(f"lens file {lens.name!r}: {len(lens.samples)} sample(s)")
+        source = LensedSource(source, lens, typed)
+    return source
+
+
+def timecode_clock(args: argparse.Namespace, source: Any) -> Any:
+    """The records' timecode clock from ``--timecode-start/--timecode-rate``."""
+    from engine.timecode import TimecodeClock, nearest_rate, parse_rate, parse_timecode
+
+    rate_text = getattr(args, "timecode_rate", None) or getattr(args, "output_rate", None)
+    rate = (parse_rate(rate_text, "--timecode-rate") if rate_text
+            else nearest_rate(float(getattr(source, "nominal_fps", 30.0) or 30.0)))
+    start = getattr(args, "timecode_start", None)
+    if start is None:
+        return TimecodeClock(rate=rate)
+    return TimecodeClock(parse_timecode(start, rate, where="--timecode-start"), rate)
+
+
 def _delays(text: str | None) -> Any:
     from engine.outputs.timing import AXES, DelayParams
 
@@ -139,6 +238,12 @@ def config_from_args(args: argparse.Namespace) -> Any:
         studio=studio,
         rate_hz=None if rate is None else parse_rate(rate),
     )
+    proj = load_project(args)
+    if proj is not None:
+        if sf_path is not None:  # an explicit --studio-frame wins over the project's
+            cfg = replace(proj.output_config(cfg), studio=studio)
+        else:
+            cfg = proj.output_config(cfg)
     check_targets(cfg)
     return cfg
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from app.commands import CommandSpec
 from app.commands._common import emit_json, log, number_arg, warn
@@ -28,6 +29,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     dl.add_argument("--outlier-px", type=number_arg(gt=0), default=3.0,
                     help="outlier residual (px)")
     dl.add_argument("--json", action="store_true", help="end with one JSON line")
+    dl.add_argument("--project", type=Path, default=None, metavar="DIR",
+                    help="save the head geometry (head_from_dlt) into this studio project; "
+                    "its line-based distortion is applied to the pixels first")
+    dl.add_argument("--pan", type=float, default=0.0, help="motor pan of the DLT image (deg)")
+    dl.add_argument("--tilt", type=float, default=0.0, help="motor tilt of the DLT image (deg)")
+    dl.add_argument("--offset-m", default="0,0,0", metavar="X,Y,Z",
+                    help="optical-centre offset from the rotation centre, camera axes (m)")
     dl.set_defaults(func=_dlt)
 
     ln = csub.add_parser("lines", help="line-based radial distortion from a chessboard image")
@@ -36,7 +44,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     ln.add_argument("--terms", type=number_arg(integer=True, lo=1, hi=4), default=2,
                     help="number of k terms (k3, k5, ...)")
     ln.add_argument("--json", action="store_true", help="end with one JSON line")
+    ln.add_argument("--project", type=Path, default=None, metavar="DIR",
+                    help="save the distortion model into this studio project's pan-tilt "
+                    "calibration")
     ln.set_defaults(func=_lines)
+
+    ps = csub.add_parser("ptz-sim", help="run the whole pan-tilt calibration chain on ptz-sim "
+                         "views (lines, marker DLTs at four poses, head) into a project")
+    ps.add_argument("--project", type=Path, required=True, metavar="DIR")
+    ps.add_argument("--source", default="ptz-sim:markers=1,distortion=0.12,encoder=0",
+                    help="the ptz-sim spec whose camera is calibrated (needs markers=1)")
+    ps.add_argument("--json", action="store_true", help="end with one JSON line")
+    ps.set_defaults(func=_ptz_sim)
 
 
 def _chessboard(args: argparse.Namespace) -> int:
@@ -62,6 +81,10 @@ def _dlt(args: argparse.Namespace) -> int:
     from engine.ptz.dlt import calibrate_dlt, load_points_csv, outlier_mask
 
     X, uv = load_points_csv(args.points)
+    proj: Any = _open_project(args.project) if args.project is not None else None
+    if proj is not None and proj.ptz is not None and proj.ptz.radial is not None:
+        uv = proj.ptz.radial.undistort_px(uv)
+        log("pixels undistorted with the project's line-based model (sec. 3.3)")
     res = calibrate_dlt(X, uv)
     d = res.decomposition
     out = outlier_mask(res.residuals_px, args.outlier_px)
@@ -69,6 +92,28 @@ def _dlt(args: argparse.Namespace) -> int:
         log(f"point {i:3d}: residual {r:7.3f} px{'  OUTLIER' if o else ''}")
     log(f"alpha_u {d.alpha_u:.2f} alpha_v {d.alpha_v:.2f} u0 {d.u0:.2f} v0 {d.v0:.2f} "
         f"rmse {res.rmse_px:.3f} px")
+    if proj is not None:
+        import dataclasses
+
+        import numpy as np
+
+        from engine.errors import CalibrationError
+        from engine.ptz.calibration import DltPose, PtzCalibration
+        from engine.ptz.kinematics import head_from_dlt
+
+        try:
+            off = np.array([float(v) for v in args.offset_m.split(",")])
+        except ValueError:
+            raise CalibrationError(f"--offset-m {args.offset_m!r}: expected X,Y,Z") from None
+        if off.shape != (3,) or not np.all(np.isfinite(off)):
+            raise CalibrationError(f"--offset-m {args.offset_m!r}: expected X,Y,Z")
+        head = head_from_dlt(d, off, args.pan, args.tilt)
+        pose = DltPose(args.pan, args.tilt, res.rmse_px, len(X))
+        cal = proj.ptz or PtzCalibration(head=None)
+        proj.ptz = dataclasses.replace(cal, head=head, dlt_poses=(pose,))
+        proj.mark_dirty()
+        proj.save()
+        log(f"{proj.folder}: head geometry saved (revision {proj.revision})")
     if args.json:
         emit_json({
             "P": res.P.tolist(), "alpha_u": d.alpha_u, "alpha_v": d.alpha_v, "u0": d.u0,
@@ -108,16 +153,58 @@ def _lines(args: argparse.Namespace) -> int:
     fit = estimate_radial_from_lines(lines, size, n_terms=args.terms)
     log(f"k {fit.model.k}, centre {fit.model.centre_px}, straightness "
         f"{fit.rms_before_px:.3f} -> {fit.rms_after_px:.3f} px")
+    if args.project is not None:
+        import dataclasses
+
+        from engine.ptz.calibration import PtzCalibration
+
+        proj: Any = _open_project(args.project)
+        cal = proj.ptz or PtzCalibration(head=None)
+        proj.ptz = dataclasses.replace(cal, radial=fit.model, image_size=size)
+        proj.mark_dirty()
+        proj.save()
+        log(f"{proj.folder}: distortion saved (revision {proj.revision})")
     if args.json:
         emit_json({**fit.model.to_json_dict(), "lines": len(lines),
                    "rms_before_px": fit.rms_before_px, "rms_after_px": fit.rms_after_px})
     return 0
 
 
+def _open_project(folder: Path) -> object:
+    from engine.project import INDEX_NAME, new_project, open_project
+
+    if (folder / INDEX_NAME).exists():
+        return open_project(folder)
+    proj = new_project(folder.name)
+    proj.folder = folder
+    return proj
+
+
+def _ptz_sim(args: argparse.Namespace) -> int:
+    from engine.errors import CalibrationError
+    from engine.ptz.sim import PtzSimSource
+    from engine.ptz.sim_calibration import calibrate_sim
+    from engine.sources import open_source
+
+    src = open_source(args.source)
+    if not isinstance(src, PtzSimSource):
+        raise CalibrationError(f"--source {args.source!r} is not a ptz-sim source")
+    cal, report = calibrate_sim(src)
+    proj: Any = _open_project(args.project)
+    proj.ptz = cal
+    proj.mark_dirty()
+    proj.save()
+    log(f"{proj.folder}: pan-tilt calibration saved (revision {proj.revision}): "
+        f"{report['lines']} lines, {report['dlt_views']} DLT views")
+    if args.json:
+        emit_json({"project": str(proj.folder), "revision": proj.revision, **report})
+    return 0
+
+
 COMMANDS = (
     CommandSpec(
         name="calibrate",
-        help="camera calibration: chessboard, dlt, lines",
+        help="camera calibration: chessboard, dlt, lines, ptz-sim (--project saves them)",
         add_arguments=add_arguments,
     ),
 )

@@ -16,7 +16,15 @@ from pathlib import Path
 
 from app.commands import CommandSpec
 from app.commands._common import emit_json, log, number_arg
-from app.commands._outputs_cli import add_output_arguments, describe, output_sink, report
+from app.commands._outputs_cli import (
+    add_output_arguments,
+    add_setup_arguments,
+    describe,
+    output_sink,
+    report,
+    setup_source,
+    timecode_clock,
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -28,6 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", "--overwrite", dest="overwrite", action="store_true",
                    help="replace an existing session folder")
     add_output_arguments(p)
+    add_setup_arguments(p)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -46,7 +55,7 @@ def _run(args: argparse.Namespace) -> int:
     check([])
     name = args.tracker or default_tracker_name()
     tracker = create_tracker(name)
-    source = open_source(args.source)
+    source = setup_source(args, open_source(args.source))
     outputs = None
     summary = None
     n = 0
@@ -62,7 +71,8 @@ def _run(args: argparse.Namespace) -> int:
                               overwrite=args.overwrite)
         with stop:
             for r in record_session(source, tracker, rec, max_frames=args.max_frames,
-                                    outputs=outputs, should_stop=stop):
+                                    outputs=outputs, should_stop=stop,
+                                    timecode=timecode_clock(args, source)):
                 n += 1
                 if n % 100 == 0:
                     log(f"recorded {n} frames ({r.fps:.1f} fps, {r.result.state.value})")

@@ -24,7 +24,13 @@ from typing import TYPE_CHECKING
 from app.commands import CommandSpec
 from app.commands._common import emit_json, log, number_arg, run_inputs, warn
 from app.commands._interrupt import StopSignals
-from app.commands._outputs_cli import add_output_arguments, sending
+from app.commands._outputs_cli import (
+    add_output_arguments,
+    add_setup_arguments,
+    sending,
+    setup_source,
+    timecode_clock,
+)
 from engine.errors import TrackerError
 
 if TYPE_CHECKING:
@@ -53,6 +59,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="replace --out even if it is a read-only file")
     _add_tracker_arguments(p)
     add_output_arguments(p)
+    add_setup_arguments(p)
 
 
 def _add_tracker_arguments(p: argparse.ArgumentParser) -> None:
@@ -117,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     from engine.sources.base import StopOnError
 
     out_path = check_output_file(args.out, error=TrackerError, label="--out", force=args.force)
-    source = open_source(args.source)
+    source = setup_source(args, open_source(args.source))
     with source:
         check_output_file(out_path, error=TrackerError, label="--out", force=args.force,
                           inputs=run_inputs(args, source))
@@ -137,7 +144,8 @@ def run(args: argparse.Namespace) -> int:
         with StopSignals("tracking") as stop, sending(args) as send:
             tr_run = run_tracker(guarded, tracker, output=spec.output,
                                  max_frames=args.max_frames, on_record=progress,
-                                 sinks=send.sinks, should_stop=stop)
+                                 sinks=send.sinks, should_stop=stop,
+                                 timecode=timecode_clock(args, source))
         notes = list(source.end_notes())
     if len(tr_run) == 0:
         if guarded.error is not None:

@@ -8,6 +8,16 @@
 - distortion: synthetic distorted grids (recovered k vs true) and real images
   (opencv_samples: chessboard rows of the left images and calib_radial.jpg).
 - chessboard: OpenCV calibration of opencv_samples left images vs left_intrinsics.yml.
+- visca_loop: the circle with the head a loopback VISCA-over-IP camera (real byte protocol,
+  finite speed) commanded through the VISCA driver, the head reading from the camera's
+  FreeD output; same error figures, plus the driver's and the FreeD input's counts.
+- calibrated_chain: the circle seen through a distorting lens (inverse radial k3 = 0.12)
+  by a head without encoder, tracked with only what the calibration tools estimated
+  (:func:`engine.ptz.sim_calibration.calibrate_sim`: line-based distortion, DLTs at four
+  motor poses -> head geometry, pan/tilt from the reference markers every frame).
+
+Each experiment is one function taking the parsed arguments and returning a dict; they run
+in :data:`EXPERIMENTS` order and their keys are flattened as ``experiment.key``.
 """
 
 from __future__ import annotations
@@ -34,27 +44,32 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--period", type=float, default=50.0, help="circle period (s)")
     p.add_argument("--trials", type=int, default=20, help="DLT trials")
     p.add_argument("--data", type=Path, default=None, help="shared data folder")
-    p.add_argument("--skip-circle", action="store_true", help="calibration parts only")
+    p.add_argument("--skip-circle", action="store_true",
+                   help="calibration parts only (no circle, VISCA loop or calibrated chain)")
+    p.add_argument("--skip-visca", action="store_true", help="no VISCA loop")
+    p.add_argument("--skip-chain", action="store_true", help="no calibrated chain")
 
 
-def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
+def track_circle(src: Any, tracker: Any, duration_s: float) -> dict[str, Any]:
+    """Run ``tracker`` over a ptz-sim circle source and measure it against the truth."""
     from engine.loop import run_tracking
-    from engine.ptz.sim import CircleScenario, PtzSimSource, PtzTargetTruth
-    from engine.trackers.ptz import PtzDetails, PtzParams, PtzTracker
+    from engine.ptz.sim import PtzTargetTruth
+    from engine.trackers.ptz import PtzDetails
 
-    sc = CircleScenario(duration_s=duration_s, period_s=period_s)
-    src = PtzSimSource(sc)
-    params = PtzParams(target_b=sc.ball_bgr[0], target_g=sc.ball_bgr[1],
-                       target_r=sc.ball_bgr[2], target_radius_m=sc.ball_radius_m)
-    tr = PtzTracker(params)
-    t_s, ep, ev, ea, dist, probs, omg, tms = [], [], [], [], [], [], [], []
+    t_s, ep, ev, ea, dist, probs, omg, tms, pt_err = [], [], [], [], [], [], [], [], []
+    sources: dict[str, int] = {}
     resets = 0
     # the pipeline closes the loop: the source's head sink moves the camera on each command
-    for rec in run_tracking(src, tr):
+    for rec in run_tracking(src, tracker):
         f, r = rec.frame, rec.result
         tms.append(rec.process_ms / 1000.0)
         d = r.details_as(PtzDetails)
         truth = f.payload(PtzTargetTruth)
+        if d is not None:
+            sources[d.pan_tilt_source] = sources.get(d.pan_tilt_source, 0) + 1
+            if truth is not None and truth.pan_tilt_deg is not None:
+                pt_err.append(max(abs(d.pan_tilt_deg[0] - truth.pan_tilt_deg[0]),
+                                  abs(d.pan_tilt_deg[1] - truth.pan_tilt_deg[1])))
         if d is None or d.target_xyz is None or truth is None or f.gt_T_world_cam is None:
             continue
         assert d.target_vel is not None
@@ -69,14 +84,17 @@ def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
         omg.append(d.omega_rad_s)
         resets = int(d.resets)
         if f.index % 300 == 0:
-            log(f"  circle t={f.timestamp_s:5.1f}s d={dist[-1]:.2f}m pos err={ep[-1]*100:.1f}cm "
+            log(f"  t={f.timestamp_s:5.1f}s d={dist[-1]:.2f}m pos err={ep[-1]*100:.1f}cm "
                 f"p={np.round(np.asarray(d.model_probs), 3).tolist()}")
+    if not t_s:
+        return {"pos_err_m_steady": None, "frames": len(tms), "note": "never initialised"}
     t = np.asarray(t_s)
     ep_a, ev_a, ea_a, d_a = map(np.asarray, (ep, ev, ea, dist))
     steady = t >= min(20.0, 0.3 * duration_s)
     far = steady & (d_a >= 6.0)
-    omegas = np.asarray(params.omegas)
-    true_j = int(np.argmin(np.abs(omegas - sc.omega_rad_s)))
+    omegas = np.asarray(tracker.params.omegas)
+    omega_true = src.sc.omega_rad_s
+    true_j = int(np.argmin(np.abs(omegas - omega_true)))
     p_final = np.asarray(probs[-1])
     med_ms = float(np.median(tms) * 1e3)
     return {
@@ -87,7 +105,7 @@ def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
         "acc_err_m_s2_steady": float(np.median(ea_a[steady])),
         "range_m": [float(d_a.min()), float(d_a.max())],
         "true_model": true_j,
-        "true_omega_rad_s": sc.omega_rad_s,
+        "true_omega_rad_s": omega_true,
         "omega_est_final_rad_s": None if omg[-1] is None else float(omg[-1]),
         "true_model_prob_final": float(p_final[true_j]),
         "model_probs_final": p_final.tolist(),
@@ -95,10 +113,72 @@ def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
         "tracker_ms_median": med_ms,
         "resets": resets,
         "frames": len(tms),
+        "pan_tilt_source_frames": sources,
+        "pan_tilt_err_deg_median": float(np.median(pt_err)) if pt_err else None,
         # 1 s resolution error curves (median per second)
         "pos_err_m_per_s": [float(np.median(ep_a[(t >= s) & (t < s + 1)]))
                             for s in range(int(duration_s)) if ((t >= s) & (t < s + 1)).any()],
     }
+
+
+def _params_for(sc: Any) -> Any:
+    from engine.trackers.ptz import PtzParams
+
+    return PtzParams(target_b=sc.ball_bgr[0], target_g=sc.ball_bgr[1],
+                     target_r=sc.ball_bgr[2], target_radius_m=sc.ball_radius_m)
+
+
+def run_circle(duration_s: float, period_s: float) -> dict[str, Any]:
+    from engine.ptz.sim import CircleScenario, PtzSimSource
+    from engine.trackers.ptz import PtzTracker
+
+    sc = CircleScenario(duration_s=duration_s, period_s=period_s)
+    return track_circle(PtzSimSource(sc), PtzTracker(_params_for(sc)), duration_s)
+
+
+def run_visca_loop(duration_s: float, period_s: float) -> dict[str, Any]:
+    """The circle through the loopback VISCA camera (module docstring)."""
+    from engine.ptz.sim import CircleScenario, PtzSimSource
+    from engine.trackers.ptz import PtzTracker
+
+    sc = CircleScenario(duration_s=duration_s, period_s=period_s)
+    src = PtzSimSource(sc, head="visca", position="freed")
+    try:
+        out = track_circle(src, PtzTracker(_params_for(sc)), duration_s)
+        cam, driver, listener = src._ensure_visca()
+        out.update({
+            "visca_commands_received": cam.commands, "visca_inquiries_answered": cam.inquiries,
+            "driver_sent": driver.sent, "driver_acks": driver.acks,
+            "driver_timeouts": driver.timeouts, "driver_garbage": driver.garbage,
+            "freed_packets_received": listener.count, "freed_errors": listener.errors,
+        })
+    finally:
+        src.close()
+    return out
+
+
+def run_calibrated_chain(duration_s: float, period_s: float, k3: float = 0.12
+                         ) -> dict[str, Any]:
+    """The circle tracked with only the calibration tools' estimates (module docstring)."""
+    from engine.ptz.sim import CircleScenario, PtzSimSource
+    from engine.ptz.sim_calibration import calibrate_sim
+    from engine.trackers.ptz import PtzTracker
+
+    sc = CircleScenario(duration_s=duration_s, period_s=period_s, markers=True,
+                        distortion_k3=k3, encoder=False)
+    src = PtzSimSource(sc)
+    cal, report = calibrate_sim(src)
+    truth = sc.head()
+    centre_err = float(np.linalg.norm(cal.head.optical_centre_world(0, 0)
+                                      - truth.optical_centre_world(0, 0)))
+    log(f"  calibration: {report['lines']} lines, straightness "
+        f"{report['straightness_before_px']:.2f} -> {report['straightness_after_px']:.2f} px; "
+        f"{report['dlt_views']} DLT views, optical centre err {centre_err * 1000:.1f} mm")
+    out = track_circle(src, PtzTracker(_params_for(sc), calibration=cal), duration_s)
+    out.update({"lens_k3_true": k3, "calibration": report,
+                "optical_centre_err_m": centre_err,
+                "focal_err_px": float(cal.head.K[0, 0] - truth.K[0, 0])})
+    return out
 
 
 def run_dlt(trials: int, noise_px: float = 0.5) -> dict[str, Any]:
@@ -264,11 +344,27 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     log(f"  fx {out['chessboard']['fx']}, k1 {out['chessboard']['k1']}, "
          f"rms {out['chessboard']['rms_px']}")
     out["pan_tilt_from_points"] = run_pan_tilt_from_points()
+    if not args.skip_circle and not args.skip_visca:
+        log(f"VISCA loop: {args.duration:.0f} s through the loopback VISCA camera")
+        out["visca_loop"] = run_visca_loop(args.duration, args.period)
+        _log_loop(out["visca_loop"])
+    if not args.skip_circle and not args.skip_chain:
+        log(f"calibrated chain: {args.duration:.0f} s, no simulator truth in the tracker")
+        out["calibrated_chain"] = run_calibrated_chain(args.duration, args.period)
+        _log_loop(out["calibrated_chain"])
     flat: dict[str, Any] = {}
     for group, vals in out.items():
         for k, v in vals.items():
             flat[f"{group}.{k}"] = v
     return flat
+
+
+def _log_loop(c: dict[str, Any]) -> None:
+    if c.get("pos_err_m_steady") is None:
+        log(f"  {c.get('note', 'no estimate')}")
+        return
+    log(f"  steady pos err {c['pos_err_m_steady'] * 100:.1f} cm (median), "
+        f"{c['updates_per_s']:.0f} updates/s, pan/tilt from {c['pan_tilt_source_frames']}")
 
 
 BENCHES = (BenchSpec(name="ptz", help=HELP, add_arguments=add_arguments, run=run),)

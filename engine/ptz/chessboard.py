@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypedDict
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,12 +61,35 @@ def calibrate_chessboard(
     pattern_cols_rows: tuple[int, int] = (9, 6),
     square_m: float = 0.025,
     fix_aspect_ratio: bool = False,
+    *,
+    fix_k3: bool = False,
+    zero_tangent: bool = False,
 ) -> ChessboardResult:
     """Find corners (sub-pixel) in every image and run cv2.calibrateCamera.
 
     ``fix_aspect_ratio`` reproduces OpenCV's sample flag (CALIB_FIX_ASPECT_RATIO, the flag
     stored in ``left_intrinsics.yml``).
     """
+    grays = [(str(p), read_calibration_image(p)) for p in images]
+    return calibrate_chessboard_images(grays, pattern_cols_rows, square_m, fix_aspect_ratio,
+                                       fix_k3=fix_k3, zero_tangent=zero_tangent)
+
+
+def calibrate_chessboard_images(
+    grays: Sequence[tuple[str, NDArray[np.uint8]]],
+    pattern_cols_rows: tuple[int, int] = (9, 6),
+    square_m: float = 0.025,
+    fix_aspect_ratio: bool = False,
+    *,
+    fix_k3: bool = False,
+    zero_tangent: bool = False,
+) -> ChessboardResult:
+    """:func:`calibrate_chessboard` on named grey images in memory (a lens sample from live
+    frames or rendered views).
+
+    ``fix_k3`` / ``zero_tangent`` fix k3 and p1, p2 at 0 (OpenCV's CALIB_FIX_K3 and
+    CALIB_ZERO_TANGENT_DIST): the lens-file workflow's simpler model, better conditioned at
+    long focal lengths where the distortion is small."""
     import math
 
     import cv2
@@ -76,7 +99,6 @@ def calibrate_chessboard(
     cols, rows = pattern_cols_rows
     obj = np.zeros((rows * cols, 3), np.float32)
     obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square_m
-    grays = [(str(p), read_calibration_image(p)) for p in images]
     size = _common_size([g.shape[1::-1] for _, g in grays])
     obj_pts, img_pts, used, skipped, reasons = [], [], [], [], []
     min_side = 4 * (max(cols, rows) + 1)
@@ -116,10 +138,14 @@ def calibrate_chessboard(
         named = (f"{Path(p).name}: {r}" for p, r in zip(skipped, reasons, strict=True))
         detail = f" (skipped: {'; '.join(named)})"
         raise CalibrationError(
-            f"chessboard {cols}x{rows} found in {len(used)} of {len(images)} image(s); need >= 3"
+            f"chessboard {cols}x{rows} found in {len(used)} of {len(grays)} image(s); need >= 3"
             + (detail[:400] if skipped else "")
         )
     flags = cv2.CALIB_FIX_ASPECT_RATIO if fix_aspect_ratio else 0
+    if fix_k3:
+        flags |= cv2.CALIB_FIX_K3
+    if zero_tangent:
+        flags |= cv2.CALIB_ZERO_TANGENT_DIST
     K0 = np.eye(3)
     rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj_pts, img_pts, size, K0, None,
                                                      flags=flags)
@@ -191,3 +217,27 @@ def read_opencv_yaml_intrinsics(path: str | Path) -> OpenCVIntrinsics:
         raise CalibrationError(f"{path}: no camera_matrix/distortion_coefficients")
     return {"K": np.asarray(K, dtype=np.float64),
             "dist": np.asarray(dist, dtype=np.float64).ravel(), "rms_px": float(err)}
+
+
+def lens_sample_from_chessboard(
+    grays: Sequence[NDArray[np.uint8]],
+    zoom_raw: int,
+    focus_raw: int = 0,
+    pattern_cols_rows: tuple[int, int] = (9, 6),
+    square_m: float = 0.025,
+    *,
+    entrance_pupil_m: float = 0.0,
+    names: Sequence[str] | None = None,
+) -> tuple[Any, ChessboardResult]:
+    """One lens-file sample (:class:`engine.lens.LensSample`) at the current encoders from
+    chessboard views taken there (k1, k2 with k3 and tangential fixed at 0)."""
+    from engine.lens import LensSample
+
+    labels = list(names) if names is not None else [f"view {i + 1}" for i in range(len(grays))]
+    res = calibrate_chessboard_images(list(zip(labels, grays, strict=True)), pattern_cols_rows,
+                                      square_m, fix_k3=True, zero_tangent=True)
+    sample = LensSample.from_intrinsics(
+        res.intrinsics, zoom_raw, focus_raw, entrance_pupil_m, rms_px=res.rms_px,
+        note=f"chessboard {pattern_cols_rows[0]}x{pattern_cols_rows[1]}, "
+        f"{len(res.used_images)} views")
+    return sample, res

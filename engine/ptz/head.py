@@ -3,8 +3,10 @@
 - :class:`PtzHeadReading` (frame payload): the head's geometry and its motor angles at
   exposure (an encoder, or the simulator's exact angles);
 - :class:`PanTiltCommand` (tracker command): where the tracker wants the head to go;
-- :class:`HeadPort`: what a head driver offers (the simulator's port, later a VISCA
-  camera); :class:`HeadCommandSink` moves it on each command (sink ``pan-tilt-head``).
+- :class:`HeadPort`: what a head driver offers (the simulator's port, the VISCA-over-IP
+  driver :class:`engine.ptz.visca_head.ViscaHead`); :class:`HeadCommandSink` moves it on
+  each command (sink ``pan-tilt-head``) and reports the driver's health (a VISCA head that
+  does not answer is ALARM "head OFFLINE").
 
 The tracker never talks to the head: it reads the payload and returns commands.
 """
@@ -66,6 +68,13 @@ class HeadCommandSink(SinkBase):
 
     def health(self) -> SinkHealth:
         msg = "" if self.last is None else f"last move {self.last[0]:.1f}° / {self.last[1]:.1f}°"
+        port_health = getattr(self.port, "health", None)
+        if callable(port_health):
+            # a real driver knows whether the head answers (VISCA: OFFLINE, reconnecting)
+            ph = port_health()
+            text = "; ".join(m for m in (ph.message, msg) if m)
+            return SinkHealth(self.name, ph.level, text,
+                              counters={"commands": self.commands, **ph.counters})
         return SinkHealth(self.name, SinkLevel.OK, msg, counters={"commands": self.commands})
 
 

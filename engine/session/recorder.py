@@ -368,6 +368,7 @@ def record_session(
     max_frames: int | None = None,
     outputs: Any = None,
     should_stop: Callable[[], bool] = lambda: False,
+    timecode: Any = None,
 ) -> Iterator[Any]:
     """Track ``source`` with ``tracker``, recording each frame; yields the FrameRecords.
 
@@ -400,7 +401,7 @@ def record_session(
     sinks.append(sink)
     records = run_tracking(guarded, tracker, sinks=sinks,
                            should_stop=lambda: should_stop() or recorder.stopped,
-                           max_frames=max_frames)
+                           max_frames=max_frames, timecode=timecode)
     try:
         for rec in records:
             if recorder.stopped:

@@ -10,6 +10,8 @@ Built in:
   (``engine.ptz.sim``; closes the pan/tilt loop with the ``ptz`` tracker)
 - ``robot-sim[:key=value,...]`` - the built-in studio from a robot-mounted camera obeying the
   presenter tracker (``engine.presenter.robot_sim``; closes the robot-camera loop)
+- ``freed:PORT`` - FreeD D1 packets from a PTZ camera or tracker (``engine.outputs.
+  freed_input``: pose, zoom/focus encoders, no image)
 - ``camera:N`` - live webcam N through OpenCV
 - ``realsense[:serial=...,width=...,...]`` - a RealSense depth camera through its SDK;
   ``path/to/file.bag`` - a RealSense recording (see ``engine.sources.realsense``)
@@ -40,7 +42,8 @@ __all__ = [
 ]
 
 #: where source specs are declared: this package, and sources that live with their algorithm
-SOURCE_PLACES = (__name__, "engine.ptz.sim", "engine.presenter.robot_sim")
+SOURCE_PLACES = (__name__, "engine.ptz.sim", "engine.presenter.robot_sim",
+                 "engine.outputs.freed_input")
 
 REGISTRY: Registry[SourceSpec] = Registry(
     "source", "SOURCES", SourceSpec, places=SOURCE_PLACES, error=SourceError

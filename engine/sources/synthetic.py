@@ -49,6 +49,10 @@ occluder (0)           1: a grey panel (0.7 x 1.3 m) moving 1.6 m in front of th
 cover_start            lens covered (dark image, no depth) from this frame ...
 cover_frames (20)      ... for this many frames (loss-and-relock tests)
 threads (1)            renderer threads per frame (0: all cores; 1 is steadier on a busy CPU)
+zoom                   sweep: a 3x zoom lens swept wide -> tele -> wide (``engine.studio.zoom``:
+                       a known lens file, frames carry the zoom/focus encoders); N: held at
+                       encoder value N (0..65535)
+zoom_cycle_s           seconds of one sweep cycle (default: the whole shot)
 =====================  ==========================================================================
 """
 
@@ -122,6 +126,18 @@ def _dropouts(s: str) -> float:
     return 0.02 if v == 1.0 else v
 
 
+def _zoom(s: str) -> str | int:
+    if s == "sweep":
+        return s
+    try:
+        v = int(s)
+    except ValueError:
+        raise ValueError("expected sweep or an encoder value 0..65535") from None
+    if not 0 <= v <= 65535:
+        raise ValueError("expected sweep or an encoder value 0..65535")
+    return v
+
+
 OPTIONS: dict[str, Callable[[str], Any]] = {
     "frames": _int(1),
     "seed": _int(0),
@@ -168,6 +184,8 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "cover_start": _int(0),
     "cover_frames": _int(0),
     "threads": _int(0, 256),
+    "zoom": _zoom,
+    "zoom_cycle_s": _float(0.0, open_lo=True),
 }
 
 
@@ -256,6 +274,18 @@ def config_from_options(opts: dict[str, str]) -> Any:
             period_s=o.get("ball_period_s", 30.0),
             ball_radius_m=o.get("ball_radius_m", 0.1),
         )
+    zoom = None
+    if "zoom_cycle_s" in o and "zoom" not in o:
+        raise SourceError("synthetic: option zoom_cycle_s needs zoom=sweep")
+    if "zoom" in o:
+        from engine.studio.zoom import ZoomScript
+
+        z = o["zoom"]
+        cycle = max(2, round(o.get("zoom_cycle_s", frames / fps) * fps))
+        zoom = (ZoomScript("sweep", cycle_frames=cycle) if z == "sweep"
+                else ZoomScript("fixed", value_raw=int(z)))
+    if zoom is not None and o.get("distortion", False):
+        raise SourceError("synthetic: zoom has its own lens distortion; drop distortion=1")
     return StudioConfig(
         frames=frames,
         seed=o.get("seed", 0),
@@ -278,6 +308,7 @@ def config_from_options(opts: dict[str, str]) -> Any:
         person2=person2,
         lighting=o.get("lighting", "default"),
         views=o.get("views", 1),
+        zoom=zoom,
     )
 
 

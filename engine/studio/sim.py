@@ -53,6 +53,7 @@ from engine.studio.scene import (
     StudioScene,
     build_scene,
 )
+from engine.studio.zoom import ZoomScript, studio_zoom_lens
 
 F64 = NDArray[np.float64]
 Box = tuple[float, float, float, float]
@@ -144,6 +145,7 @@ class StudioConfig:
     person2: PresenterScript | None = None  # a second person (another look, label 6)
     lighting: str = "default"  # a variant of ``engine.studio.lighting.LIGHTINGS``
     views: int = 1  # 2: also the overhead camera (engine.studio.views), an OverheadView payload
+    zoom: ZoomScript | None = None  # a zoom lens (engine.studio.zoom): None = the fixed lens
 
     def __post_init__(self) -> None:
         if self.lighting not in LIGHTINGS:
@@ -159,6 +161,10 @@ class Studio:
         self.config = config
         self.scene = build_scene(config.seed)
         self.intrinsics = studio_intrinsics(config.width, config.height, config.distortion)
+        self._zoom_renderers: dict[int, tuple[Intrinsics, Renderer]] = {}
+        if config.zoom is not None:
+            self.intrinsics = studio_zoom_lens(config.width, config.height).intrinsics_at(
+                config.zoom.encoders(0).zoom_raw)
 
     @cached_property
     def renderer(self) -> Renderer:
@@ -219,6 +225,25 @@ class Studio:
     def T_world_cam(self, index: int) -> F64:
         return self.config.path.T_world_cam(index / self.config.fps)
 
+    def lens_at(self, index: int) -> tuple[Intrinsics, Renderer, tuple[FramePayload, ...]]:
+        """Intrinsics, renderer and lens payloads of frame ``index`` (zoom lens: the known
+        lens file at the frame's zoom encoder, renderers kept for recent encoder values)."""
+        zoom = self.config.zoom
+        if zoom is None:
+            return self.intrinsics, self.renderer, ()
+        enc = zoom.encoders(index)
+        cached = self._zoom_renderers.get(enc.zoom_raw)
+        if cached is None:
+            lens = studio_zoom_lens(self.config.width, self.config.height)
+            cam = lens.intrinsics_at(enc.zoom_raw, enc.focus_raw)
+            light = LIGHTINGS[self.config.lighting]
+            cached = (cam, Renderer(self.scene, cam, self.config.threads,
+                                    None if light.name == "default" else light.dynamic_light()))
+            if len(self._zoom_renderers) >= 4:
+                self._zoom_renderers.pop(next(iter(self._zoom_renderers)))
+            self._zoom_renderers[enc.zoom_raw] = cached
+        return cached[0], cached[1], (enc,)
+
     def frame(self, index: int, T_world_cam: F64 | None = None) -> Frame:
         """Frame ``index``; ``T_world_cam`` overrides the path's pose (closed-loop cameras,
         e.g. a simulated pan-tilt head driven by a tracker) - the presenter, ball and noise
@@ -252,7 +277,8 @@ class Studio:
             parts.append(occluder_prims(occ_centre, self.scene))
             truth["occluder_pos_world"] = _tup(occ_centre)
         prims = concat_prims(*parts) if parts else None
-        out = self.renderer.render(T_world_cam, prims)
+        cam, renderer, lens_payloads = self.lens_at(index)
+        out = renderer.render(T_world_cam, prims)
         color, depth, labels = out.color_bgr, out.depth_m, out.labels
         # exposure and white balance of the lighting variant (before the sensor noise)
         light = LIGHTINGS[cfg.lighting]
@@ -292,7 +318,7 @@ class Studio:
         if ball_truth is not None and cfg.ball is not None:
             pos, vel, acc = ball_truth
             p_cam = (invert(T_world_cam) @ np.append(pos, 1.0))[:3]
-            uv = project(self.intrinsics, p_cam[None, :])[0]
+            uv = project(cam, p_cam[None, :])[0]
             truth["ball_pos_world"] = _tup(pos)
             truth["ball_vel_world"] = _tup(vel)
             truth["ball_acc_world"] = _tup(acc)
@@ -337,11 +363,11 @@ class Studio:
             index=index,
             timestamp_s=t_s,
             color_bgr=color,
-            intrinsics=self.intrinsics,
+            intrinsics=cam,
             depth_m=depth,
             gt_T_world_cam=T_world_cam,
             gt_box_xywh=presenter_box,
-            payloads=payloads,
+            payloads=(*payloads, *lens_payloads),
         )
 
 

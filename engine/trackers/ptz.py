@@ -8,6 +8,13 @@ geometry and motor angles come from the frame's :class:`engine.ptz.head.PtzHeadR
 (encoder) or, without one, a fixed camera at the world origin with ``frame.intrinsics`` at
 the last commanded angles.
 
+With a calibration (:class:`engine.ptz.calibration.PtzCalibration`, from the studio project:
+``--project DIR`` / ``project_dir``, or given to the tracker) the chain uses only what the
+calibration tools estimated: the head geometry from the DLTs instead of any geometry a frame
+carries, the line-based distortion on every measurement (sec. 3.3), and the motor angles from
+the head's encoder reading when there is one (``use_encoder``) or else from the reference
+markers in the image (sec. 3.2), else the last commanded angles.
+
 The result's ``T_world_cam`` is the camera pose (from the head kinematics), ``box_xywh`` the
 target's box; ``details`` (:class:`PtzDetails`) hold the estimate (``target_xyz``,
 ``target_vel``, ``target_acc``, ``target_cov``, ``model_probs``, ``omega_rad_s``,
@@ -25,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from engine.errors import ParamsError
+from engine.errors import ParamsError, TrackerError
 from engine.frames import Frame, readonly
 from engine.params import Params, Preset, param
 from engine.ptz.head import PanTiltCommand, PtzHeadReading
@@ -72,6 +79,12 @@ class PtzParams(Params):
     nis_reset: float = param(25.0, lo=3.0, hi=1e6,
                              help="re-initialise when the mean NIS over 15 updates exceeds this")
     control: bool = param(True, help="send pan/tilt commands")
+    project_dir: str = param("", help="studio project folder whose pan-tilt calibration "
+                             "(DLT head, line-based distortion, reference points) the tracker "
+                             "uses; empty: the source's head geometry")
+    use_encoder: bool = param(True, help="with a calibration: take pan/tilt from the head's "
+                              "encoder reading when the frame has one (else from the "
+                              "reference markers)")
     deadband_px: float = param(40.0, lo=0.0, hi=1000.0,
                                help="re-centre when the target is this far from the image centre "
                                "(px)")
@@ -122,6 +135,9 @@ class PtzDetails(TrackDetails):
     omega_rad_s: float | None = None
     mean_nis: float | None = None
     command_deg: tuple[float, float] | None = None
+    #: where pan/tilt came from: "encoder", "markers" (reference points), "command", "fixed"
+    pan_tilt_source: str = "encoder"
+    markers_used: int | None = None
 
     def __post_init__(self) -> None:
         for name in ("target_xyz", "target_vel", "target_acc", "target_cov", "model_probs",
@@ -129,12 +145,34 @@ class PtzDetails(TrackDetails):
             readonly(getattr(self, name))
 
 
+def load_calibration(project_dir: str) -> Any:
+    """The pan-tilt calibration of a studio project (one line if it has none)."""
+    from engine.project import ProjectError, open_project
+
+    try:
+        proj = open_project(project_dir)
+    except ProjectError as exc:
+        raise TrackerError(str(exc)) from None
+    if proj.ptz is None or proj.ptz.head is None:
+        what = "pan-tilt calibration" if proj.ptz is None else "head geometry (no DLT solved)"
+        raise TrackerError(f"{project_dir}: the project has no {what} (save the DLT/head and "
+                           "distortion from the PTZ page, or studiotrack calibrate dlt|lines|"
+                           "ptz-sim --project DIR)")
+    return proj.ptz
+
+
 class PtzTracker:
     name = "ptz"
 
-    def __init__(self, params: PtzParams) -> None:
+    def __init__(self, params: PtzParams, calibration: Any = None) -> None:
         self._params = params
         self._pending: PtzParams | None = None
+        if calibration is None and params.project_dir:
+            calibration = load_calibration(params.project_dir)
+        if calibration is not None and calibration.head is None:
+            raise TrackerError("pan-tilt calibration has no head geometry (solve the DLT)")
+        #: engine.ptz.calibration.PtzCalibration or None (the source's head geometry)
+        self.calibration = calibration
         self.reset()
 
     @property
@@ -150,6 +188,8 @@ class PtzTracker:
         self.last_cmd: tuple[float, float] | None = None
         self.resets = 0
         self.misses = 0
+        self.last_pan_tilt: tuple[float, float] | None = None
+        self.last_marker_pan_tilt: tuple[float, float] | None = None
 
     def _build(self) -> None:
         from engine.ptz.mmae import Mmae
@@ -161,6 +201,8 @@ class PtzTracker:
     def _head(self, frame: Frame) -> Any:
         from engine.ptz.kinematics import PtzHead
 
+        if self.calibration is not None:
+            return self.calibration.head
         reading = frame.payload(PtzHeadReading)
         if reading is not None and reading.head is not None:
             return reading.head
@@ -185,9 +227,8 @@ class PtzTracker:
             return TrackResult(state=TrackState.LOST)
         t0 = time.perf_counter()
         head = self._head(frame)
-        reading = frame.payload(PtzHeadReading)
-        pan, tilt = ((reading.pan_deg, reading.tilt_deg) if reading is not None
-                     else self.last_cmd or (0.0, 0.0))
+        pan, tilt, pt_source, n_markers = self._pan_tilt(frame)
+        self.last_pan_tilt = (pan, tilt)
         P_cam = head.P(pan, tilt)
         T_wc = head.T_world_cam(pan, tilt)
         c_world = T_wc[:3, 3]
@@ -207,6 +248,7 @@ class PtzTracker:
             pred_uv = (float(zp[0]), float(zp[1]))
         t1 = time.perf_counter()
         focal = float(np.sqrt(head.K[0, 0] * head.K[1, 1]))
+        cal = self.calibration
         meas = measure_target(
             np.asarray(frame.color_bgr), p.target_bgr, p.target_radius_m, focal,
             alpha=p.snake_alpha, beta=p.snake_beta, external=p.external_force,
@@ -221,7 +263,9 @@ class PtzTracker:
         else:
             self.misses = 0
             z = np.array([meas.u, meas.v, meas.d_m])
-            if frame.intrinsics is not None and frame.intrinsics.has_distortion:
+            if cal is not None and cal.radial is not None:
+                z = _undistorted_measurement(cal, meas, p.target_radius_m, focal)
+            elif frame.intrinsics is not None and frame.intrinsics.has_distortion:
                 from engine.camera import pixels_to_normalized
 
                 cam = frame.intrinsics
@@ -262,7 +306,8 @@ class PtzTracker:
                     self.last_cmd = cmd
                     commands = (PanTiltCommand(*cmd),)
         details = PtzDetails(pan_tilt_deg=(pan, tilt), resets=self.resets, reinitialised=reinit,
-                             predicted_uv=pred_uv, **det)
+                             predicted_uv=pred_uv, pan_tilt_source=pt_source,
+                             markers_used=n_markers, **det)
         overlay = Overlay(
             polylines_uv=tuple(polylines),
             crosshair_uv=(meas.u, meas.v) if meas is not None else None,
@@ -281,6 +326,33 @@ class PtzTracker:
             message="target not found" if meas is None else "",
         )
 
+    def _pan_tilt(self, frame: Frame) -> tuple[float, float, str, int | None]:
+        """Motor angles of the frame and where they came from (see the module docstring)."""
+        reading = frame.payload(PtzHeadReading)
+        cal = self.calibration
+        if reading is not None and (cal is None or self._params.use_encoder):
+            return reading.pan_deg, reading.tilt_deg, "encoder", None
+        fallback = self.last_pan_tilt or self.last_cmd
+        if cal is not None and frame.color_bgr is not None:
+            from engine.ptz.calibration import pan_tilt_from_markers, search_guesses
+
+            # the head went where it was told, or stayed where it was seen; with neither
+            # (first frame) search the whole working range
+            guesses = [g for g in (self.last_cmd, self.last_marker_pan_tilt) if g is not None]
+            est = pan_tilt_from_markers(cal, np.asarray(frame.color_bgr),
+                                        guesses or search_guesses())
+            if est is None and guesses:
+                est = pan_tilt_from_markers(cal, np.asarray(frame.color_bgr),
+                                            search_guesses())
+            if est is not None:
+                self.last_marker_pan_tilt = (est.pan_deg, est.tilt_deg)
+                return est.pan_deg, est.tilt_deg, "markers", est.points
+        if self.last_cmd is not None:
+            return *self.last_cmd, "command", None
+        if fallback is not None:
+            return *fallback, "command", None
+        return 0.0, 0.0, "fixed", None
+
     def _init_filter(self, z: np.ndarray, P_cam: np.ndarray, T_wc: np.ndarray) -> None:
         """Position from the back-projected (u, v) at distance d; zero velocity/acceleration."""
         Minv = np.linalg.inv(P_cam[:, :3])
@@ -296,6 +368,27 @@ class PtzTracker:
         self.mmae.init(x0, P0)
 
 
+def _undistorted_measurement(cal: Any, meas: Any, radius_m: float, focal_px: float
+                             ) -> np.ndarray:
+    """(u, v, d) with the line-based model applied (sec. 3.3): the centre undistorted and the
+    apparent radius measured between undistorted points on the target's rim."""
+    u, v, r = meas.u, meas.v, max(meas.radius_px, 1e-3)
+    pts = np.array([[u, v], [u + r, v], [u - r, v], [u, v + r], [u, v - r]])
+    und = cal.undistort_px(pts)
+    r_ideal = float(np.mean(np.linalg.norm(und[1:] - und[0], axis=1)))
+    d = radius_m / np.sin(np.arctan(max(r_ideal, 1e-3) / focal_px))
+    return np.array([und[0, 0], und[0, 1], float(d)])
+
+
+def _params_from_cli(args: Any, params: PtzParams) -> PtzParams:
+    import dataclasses
+
+    project = getattr(args, "project", None)
+    if project:
+        return dataclasses.replace(params, project_dir=str(project))
+    return params
+
+
 TRACKERS = (
     TrackerSpec(
         name="ptz",
@@ -304,5 +397,6 @@ TRACKERS = (
         params_cls=PtzParams,
         factory=PtzTracker,
         output="box",
+        params_from_cli=_params_from_cli,
     ),
 )
