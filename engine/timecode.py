@@ -75,7 +75,7 @@ def nearest_rate(fps: float) -> str:
 
 
 def _lib(rate: str, text: str | None = None, frames: int | None = None) -> Any:
-    from timecode import Timecode as LibTimecode
+    from timecode.timecode import Timecode as LibTimecode
 
     if frames is not None:
         return LibTimecode(rate, frames=frames)

@@ -168,6 +168,7 @@ def run_calibrated_chain(duration_s: float, period_s: float, k3: float = 0.12
                         distortion_k3=k3, encoder=False)
     src = PtzSimSource(sc)
     cal, report = calibrate_sim(src)
+    assert cal.head is not None
     truth = sc.head()
     centre_err = float(np.linalg.norm(cal.head.optical_centre_world(0, 0)
                                       - truth.optical_centre_world(0, 0)))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 from engine.camera import Intrinsics
@@ -77,6 +78,12 @@ class HeadedSource(Source):
             if enc is not None and f.payload(LensEncoders) is None:
                 extra.append(enc)
             yield dataclasses.replace(f, payloads=(*f.payloads, *extra))
+
+    def input_paths(self) -> tuple[Path, ...]:
+        return self.inner.input_paths()
+
+    def end_notes(self) -> tuple[str, ...]:
+        return self.inner.end_notes()
 
     def sinks(self) -> Sequence[Any]:
         own = tuple(self.inner.sinks())

@@ -306,8 +306,9 @@ class ViscaHead:
                             self._cond.wait(min(next_reconnect - now, 0.1))
                     continue
                 next_reconnect = now + self.reconnect_s
+                if self._ever_ok:
+                    self.reconnects += 1  # an attempt after the head was lost
                 if not self._reset():
-                    self.reconnects += 1
                     self._put_back(target, zoom)
                     continue
                 connected = True

@@ -97,8 +97,8 @@ class ViscaCameraSim:
             self.tilt_deg = _step(self.tilt_deg, tt, st * self.speed_scale * dt)
             self.zoom_raw = int(_step(self.zoom_raw, self._zoom_target,
                                       32768.0 * self.speed_scale * dt))
-            done = []
-            keep = []
+            done: list[tuple[tuple[str, int], int, str]] = []
+            keep: list[tuple[tuple[str, int], int, str]] = []
             for addr, seq, kind in self._pending:
                 reached = ((kind == "pt" and self.pan_deg == tp and self.tilt_deg == tt)
                            or (kind == "zoom" and self.zoom_raw == self._zoom_target))

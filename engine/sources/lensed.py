@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 from engine.camera import Intrinsics
@@ -94,6 +95,12 @@ class LensedSource(Source):
     def frames(self) -> Iterator[Frame]:
         for f in self.inner.frames():
             yield self.apply(f)
+
+    def input_paths(self) -> tuple[Path, ...]:
+        return self.inner.input_paths()
+
+    def end_notes(self) -> tuple[str, ...]:
+        return self.inner.end_notes()
 
     def sinks(self) -> Sequence[Any]:
         return self.inner.sinks()

@@ -17,6 +17,7 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.arrays import u8
 from engine.camera import Intrinsics, pixels_to_normalized, project
 from engine.geometry import make_T, so3_exp
 
@@ -54,7 +55,7 @@ def render_chessboard(cam: Intrinsics, T_cam_board: F64, pattern_cols_rows: tupl
     black = ((np.floor(x) + np.floor(y)) % 2 == 0) & in_board
     val[black] = 20.0
     img = val.reshape(h, ss, w, ss).mean(axis=(1, 3))
-    return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+    return u8(np.clip(img + 0.5, 0, 255).astype(np.uint8))
 
 
 @lru_cache(maxsize=4)
@@ -116,7 +117,7 @@ def calibration_views(cam: Intrinsics, n_views: int = 10, pattern_cols_rows: tup
         ax = rng.normal(size=3)
         ax[2] *= 0.5
         ang = math.radians(rng.uniform(10.0, max_tilt_deg)) if len(poses) else 0.0
-        rv = ax / max(np.linalg.norm(ax), 1e-9) * ang
+        rv = ax / max(float(np.linalg.norm(ax)), 1e-9) * ang
         R = so3_exp(rv)
         z = dist * rng.uniform(0.85, 1.15)
         half_w = 0.5 * cam.width / cam.fx * z
