@@ -265,7 +265,7 @@ class LensFile:
         return bool(self.samples) and not self.missing_corners()
 
     def _table(self) -> tuple[tuple[int, ...], tuple[int, ...], np.ndarray]:
-        grid = self._grid
+        grid: tuple[tuple[int, ...], tuple[int, ...], np.ndarray] | None = self._grid
         if grid is None:
             self.check_complete()
             za, fa = self.zoom_axis, self.focus_axis
@@ -274,7 +274,7 @@ class LensFile:
                 vals[za.index(s.zoom_raw), fa.index(s.focus_raw)] = s.values()
             grid = (za, fa, vals)
             object.__setattr__(self, "_grid", grid)
-        return grid  # type: ignore[no-any-return]
+        return grid
 
     def values_at(self, zoom_raw: float, focus_raw: float) -> dict[str, float]:
         """Bilinear interpolation of every value at the encoder pair (edges hold)."""

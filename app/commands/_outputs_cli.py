@@ -120,7 +120,15 @@ def load_project(args: argparse.Namespace) -> Any:
 
 def setup_source(args: argparse.Namespace, source: Any) -> Any:
     """``source`` with the head (``--head``/``--head-position``) and the lens file
-    (``--lens`` or the project's) applied."""
+    (``--lens`` or the project's) applied; on a bad option ``source`` is closed."""
+    try:
+        return _setup_source(args, source)
+    except BaseException:
+        source.close()
+        raise
+
+
+def _setup_source(args: argparse.Namespace, source: Any) -> Any:
     head_spec = getattr(args, "head", None)
     pos_spec = getattr(args, "head_position", None)
     if head_spec or pos_spec:

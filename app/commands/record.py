@@ -56,6 +56,11 @@ def _run(args: argparse.Namespace) -> int:
     name = args.tracker or default_tracker_name()
     tracker = create_tracker(name)
     source = setup_source(args, open_source(args.source))
+    try:
+        clock = timecode_clock(args, source)  # a bad timecode option fails before any file
+    except Exception:
+        source.close()
+        raise
     outputs = None
     summary = None
     n = 0
@@ -72,7 +77,7 @@ def _run(args: argparse.Namespace) -> int:
         with stop:
             for r in record_session(source, tracker, rec, max_frames=args.max_frames,
                                     outputs=outputs, should_stop=stop,
-                                    timecode=timecode_clock(args, source)):
+                                    timecode=clock):
                 n += 1
                 if n % 100 == 0:
                     log(f"recorded {n} frames ({r.fps:.1f} fps, {r.result.state.value})")

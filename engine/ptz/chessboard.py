@@ -70,6 +70,10 @@ def calibrate_chessboard(
     ``fix_aspect_ratio`` reproduces OpenCV's sample flag (CALIB_FIX_ASPECT_RATIO, the flag
     stored in ``left_intrinsics.yml``).
     """
+    import math
+
+    if not (math.isfinite(square_m) and square_m > 0):  # before reading any image
+        raise CalibrationError(f"square size must be a positive number of metres, got {square_m}")
     grays = [(str(p), read_calibration_image(p)) for p in images]
     return calibrate_chessboard_images(grays, pattern_cols_rows, square_m, fix_aspect_ratio,
                                        fix_k3=fix_k3, zero_tangent=zero_tangent)

@@ -65,7 +65,7 @@ def test_calibration_document_round_trip_and_one_line_errors():
         PtzCalibration.from_json(d, "ptz.json")
     d = cal.to_json()
     d["distortion"]["model"] = "fisheye"
-    with pytest.raises(CalibrationError, match="distortion.model must be 'inverse_radial'"):
+    with pytest.raises(CalibrationError, match=r"distortion\.model must be 'inverse_radial'"):
         PtzCalibration.from_json(d, "ptz.json")
 
 
@@ -167,7 +167,7 @@ def test_visca_loop_follows_the_ball():
             pans.append(truth.pan_tilt_deg[0])
             if d.target_xyz is not None and rec.frame.timestamp_s > 3.0:
                 errs.append(np.linalg.norm(d.target_xyz - np.asarray(truth.xyz_world)))
-        cam, driver, listener = src._ensure_visca()
+        cam, _driver, listener = src._ensure_visca()
         assert cam.commands > 3  # real VISCA commands moved the camera
         assert listener.count == len(src)  # one FreeD reading per frame
         assert max(pans) - min(pans) > 20.0  # it turned to follow the ball

@@ -61,7 +61,7 @@ def test_head_spec_errors_are_one_line():
         parse_head_spec("pelco:1.2.3.4")
     with pytest.raises(vc.ViscaError, match="unknown option 'speed'"):
         parse_head_spec("visca:127.0.0.1,speed=3")
-    with pytest.raises(vc.ViscaError, match="pan_speed 1..24"):
+    with pytest.raises(vc.ViscaError, match=r"pan_speed 1\.\.24"):
         parse_head_spec("visca:127.0.0.1:52381,pan_speed=99")
 
 
