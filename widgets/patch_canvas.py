@@ -75,6 +75,8 @@ class PatchCanvas(QWidget):
         self.particles: NDArray[np.float32] | None = None
         self.particle_w: NDArray[np.float32] | None = None
         self.show_model = True
+        #: what the canvas says while it has no image
+        self.placeholder = "No reference image: press \u201cTake reference\u201d"
 
     # ---------------------------------------------------------------- image and mapping
     def set_image(self, image_bgr: NDArray[np.uint8] | None) -> None:
@@ -129,6 +131,11 @@ class PatchCanvas(QWidget):
 
     def clear_model(self) -> None:
         self.set_model(None, [])
+
+    def set_floor_points(self, points: list[tuple[float, float]]) -> None:
+        """Replace the floor marks (image px), e.g. from a saved calibration."""
+        self.floor_points = [(float(x), float(y)) for x, y in points][:4]
+        self.update()
 
     def delete_selected(self) -> bool:
         if 0 <= self.selected < len(self.patches):
@@ -266,8 +273,9 @@ class PatchCanvas(QWidget):
             p.drawImage(self._wrect((0.0, 0.0, float(w), float(h))), self._qimage)
         else:
             p.setPen(QColor("#8a93a3"))
-            p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter,
-                       "No reference image: press \u201cTake reference\u201d")
+            p.drawText(QRectF(self.rect()).adjusted(12, 12, -12, -12),
+                       Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap,
+                       self.placeholder)
         if self.particles is not None and len(self.particles):
             s, ox, oy = self._scale_offset()
             wts = self.particle_w if self.particle_w is not None else np.ones(len(self.particles))

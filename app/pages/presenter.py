@@ -6,6 +6,12 @@ selected patch, names are edited in the list); each patch's 10x10 hue-saturation
 (+ the brightness bins of hue-less pixels) is shown. Degenerate selections get a one-line
 message. Models are saved as model.json + reference.png in the project (or a session folder).
 
+Two views (paper Fig. 2): a source with a second camera (``synthetic:views=2``, ``twoview:``)
+shows its picture beside the frontal one; the Floor tab takes its frame, four floor marks are
+clicked on it and their floor coordinates (m) typed in, with the robot's floor position; the
+calibration is saved in the studio project and given to the tracker, which then reports the
+presenter's floor position, height and distance d, and sends the talent output.
+
 Live: Start runs ``presenter`` through the window's run owner (``ctx.run``: the outputs,
 the robot-camera control sink and the status header follow it; a run of another page must be
 stopped first). Boxes or a cross-hair over the video, the particle cloud, the colour
@@ -30,6 +36,7 @@ from PySide6.QtGui import QColor, QPainter
 from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
+    QDoubleSpinBox,
     QFrame,
     QGridLayout,
     QGroupBox,
@@ -42,6 +49,8 @@ from PySide6.QtWidgets import (
     QRadioButton,
     QScrollArea,
     QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
     QTabWidget,
     QVBoxLayout,
     QWidget,
@@ -54,13 +63,14 @@ from widgets.patch_canvas import PATCH_COLOURS, PatchCanvas
 from widgets.status_light import StatusLight
 
 CELL_PX = 9
+AXIS_PX = 14  # room for the saturation axis label
 HISTORY = 300
 DEFAULT_SOURCE = "synthetic:frames=3000,seed=3,presenter=1,path=static"
 
 
 class HistogramTile(QWidget):
     """One patch's N x N hue-saturation histogram (cell colour = bin colour, square size =
-    weight) and, below, its N brightness bins for hue-less pixels."""
+    weight) and, below, its N brightness bins for hue-less pixels; axes labelled."""
 
     def __init__(self, name: str, hist: np.ndarray, n_bins: int, colour: str,
                  parent: QWidget | None = None) -> None:
@@ -74,13 +84,32 @@ class HistogramTile(QWidget):
         self.setFixedSize(self.sizeHint())
 
     def sizeHint(self) -> QSize:
-        return QSize(CELL_PX * self.n + 8, CELL_PX * (self.n + 1) + 24)
+        return QSize(CELL_PX * self.n + 8 + AXIS_PX, CELL_PX * (self.n + 1) + 24 + 2 * 12)
 
     def paintEvent(self, _ev: object) -> None:
         p = QPainter(self)
         n, c = self.n, float(CELL_PX)
-        p.setPen(self.colour)
+        font = p.font()
+        font.setBold(True)
+        p.setFont(font)
+        p.setPen(self.colour.lighter(130))
         p.drawText(QRectF(0, 0, self.width(), 14), Qt.AlignmentFlag.AlignLeft, self.name)
+        small = p.font()
+        small.setBold(False)
+        small.setPointSizeF(max(small.pointSizeF() - 1.5, 6.5))
+        p.setFont(small)
+        p.setPen(QColor("#aab2bf"))
+        p.drawText(QRectF(AXIS_PX, 14, n * c + 4, 12), Qt.AlignmentFlag.AlignLeft,
+                   "hue →")
+        p.save()  # the saturation axis, written upwards beside the grid
+        p.translate(AXIS_PX - 3, 28 + n * c)
+        p.rotate(-90)
+        p.drawText(QRectF(0, -11, n * c, 11), Qt.AlignmentFlag.AlignLeft,
+                   "saturation →")
+        p.restore()
+        p.drawText(QRectF(AXIS_PX, 28 + (n + 1) * c + 6, n * c + 4, 12),
+                   Qt.AlignmentFlag.AlignLeft, "no hue: brightness →")
+        p.translate(AXIS_PX - 4, 12)
         top = 16.0
         hs = self.hist[: n * n].reshape(n, n)  # [hue bin, sat bin]
         grey = self.hist[n * n:]
@@ -130,6 +159,17 @@ class PresenterPage(Page):
         self.take_button.setToolTip("Grab the current frame of the source as the reference")
         self.take_button.clicked.connect(self.take_reference)
         self.canvas = PatchCanvas()
+        # the second (overhead) camera: its picture, the tracked box, the floor marks
+        self.over_canvas = PatchCanvas()
+        self.over_canvas.placeholder = ("No second view: a source with an overhead camera "
+                                        "(synthetic:...,views=2 or twoview:...) shows it here")
+        self.over_canvas.set_mode("floor")
+        self.over_canvas.setMinimumSize(240, 180)
+        self.over_canvas.setToolTip("Second (overhead) camera. In the Floor tab, click four "
+                                    "floor marks here and type their floor coordinates")
+        self.over_canvas.floor_point_added.connect(self._on_floor_point)
+        self.floor_calib: Any = None
+        self.over_reference: np.ndarray | None = None
         self.mode_group = QButtonGroup(self)
         self.mode_buttons: dict[str, QPushButton] = {}
         mode_row = QHBoxLayout()
@@ -137,7 +177,6 @@ class PresenterPage(Page):
             ("main", "Main region", "Drag the rectangle enclosing the presenter"),
             ("patch", "Add patch", "Drag a patch inside the main region (head, torso, legs...)"),
             ("edit", "Edit", "Drag a rectangle to move it, its corner handle to resize it"),
-            ("floor", "Floor points", "Click four floor points of known position (overhead)"),
         ):
             b = QPushButton(text)
             b.setCheckable(True)
@@ -184,7 +223,7 @@ class PresenterPage(Page):
 
         self.canvas.rects_changed.connect(self._on_rects_changed)
         self.canvas.selection_changed.connect(self._on_canvas_selected)
-        self.canvas.floor_point_added.connect(self._on_floor_point)
+        self._build_floor_tab()
 
         # ---------------------------------------------------------- live controls
         self.form = ParamForm(PresenterParams())
@@ -218,6 +257,16 @@ class PresenterPage(Page):
                                            name="Pmin")
         self.pref_curve = self.p_plot.plot(pen=pg.mkPen("#4cc3ff", style=Qt.PenStyle.DashLine),
                                            name="Pref")
+        self.z_plot = pg.PlotWidget(title="Loss test: colour contrast z")
+        self.z_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=2)
+        self.z_plot.setToolTip("z: the patches' colour distance from the model, 0 = the "
+                               "presenter's own level, 1 = the most presenter-like "
+                               "background; LOST while z is above the threshold")
+        self.z_curve = self.z_plot.plot(pen=pg.mkPen("#2ecc71", width=2), name="z")
+        self.z_over = self.z_plot.plot(pen=pg.mkPen("#b28dff", width=1), name="z overhead")
+        self.zmax_curve = self.z_plot.plot(pen=pg.mkPen("#ff4d4f", style=Qt.PenStyle.DashLine),
+                                           name="LOST above")
+        self.z_plot.setYRange(-0.5, 1.5)
         self.xy_plot = pg.PlotWidget(title="Image position")
         self.xy_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=2)
         self.xy_plot.setToolTip("Presenter x, y in the image: raw particle-filter estimate vs "
@@ -230,8 +279,8 @@ class PresenterPage(Page):
         self.d_plot.setToolTip("Presenter distance d from the second (overhead) view, "
                                "needs the four floor points")
         self.d_curve = self.d_plot.plot(pen=pg.mkPen("#ff8c42", width=2))
-        for plot, left_label in ((self.p_plot, "P"), (self.xy_plot, "x, y (px)"),
-                                 (self.d_plot, "d (m)")):
+        for plot, left_label in ((self.p_plot, "P"), (self.z_plot, "z"),
+                                 (self.xy_plot, "x, y (px)"), (self.d_plot, "d (m)")):
             plot.setMinimumHeight(120)
             plot.setMinimumWidth(200)
             plot.setLabel("left", left_label)
@@ -249,7 +298,12 @@ class PresenterPage(Page):
         src_row.addWidget(self.take_button)
         lv.addLayout(src_row)
         lv.addLayout(mode_row)
-        lv.addWidget(self.canvas, 1)
+        views = QSplitter(Qt.Orientation.Horizontal)
+        views.addWidget(self.canvas)
+        views.addWidget(self.over_canvas)
+        views.setStretchFactor(0, 3)
+        views.setStretchFactor(1, 2)
+        lv.addWidget(views, 1)
         disp = QHBoxLayout()
         disp.addWidget(self.boxes_radio)
         disp.addWidget(self.cross_radio)
@@ -293,6 +347,7 @@ class PresenterPage(Page):
         self.side_tabs = QTabWidget()
         self.side_tabs.addTab(model_box, "Model")
         self.side_tabs.addTab(form_scroll, "Parameters")
+        self.side_tabs.addTab(self.floor_box, "Floor")
         model_box.setTitle("")
         model_box.setStyleSheet("QGroupBox { border: none; margin-top: 0; padding-top: 0; }")
         right = QWidget()
@@ -304,6 +359,7 @@ class PresenterPage(Page):
         pv = QHBoxLayout(plots)
         pv.setContentsMargins(0, 0, 0, 0)
         pv.addWidget(self.p_plot)
+        pv.addWidget(self.z_plot)
         pv.addWidget(self.xy_plot)
         pv.addWidget(self.d_plot)
 
@@ -323,6 +379,7 @@ class PresenterPage(Page):
         outer.setContentsMargins(6, 6, 6, 6)
         outer.addWidget(split)
 
+        self._show_loss_plot()
         self.run.failed.connect(self._on_failed)
         self.run.started.connect(self._on_started)
         self.run.finished.connect(self._on_finished)
@@ -365,6 +422,11 @@ class PresenterPage(Page):
         if img.ndim == 2:
             img = np.repeat(img[..., None], 3, axis=2)
         self.set_reference(np.array(img))
+        from engine.floor import OverheadView
+
+        over = frame.payload(OverheadView)
+        if over is not None and self.over_reference is None:
+            self.set_overhead(np.array(over.color_bgr), over.floor_calibration)
 
     def set_reference(self, image_bgr: np.ndarray) -> None:
         self.reference = image_bgr
@@ -480,12 +542,202 @@ class PresenterPage(Page):
         self.patch_list.setCurrentRow(idx if idx >= 0 else -1)
         self.patch_list.blockSignals(False)
 
+    # ------------------------------------------------------------------ two views
+    def _build_floor_tab(self) -> None:
+        """The floor calibration of the second view: four marks, the robot, the lens."""
+        self.floor_box = QWidget()
+        fv = QVBoxLayout(self.floor_box)
+        intro = QLabel("Floor calibration of the overhead camera: take its frame, click four "
+                       "floor marks on it (right picture), type where they are on the floor "
+                       "(metres, studio floor frame) and the robot's floor position.")
+        intro.setWordWrap(True)
+        intro.setObjectName("readout_caption")
+        fv.addWidget(intro)
+        row = QHBoxLayout()
+        self.take_over_button = QPushButton("Take overhead frame")
+        self.take_over_button.setToolTip("The source's second view at its first frame")
+        self.take_over_button.clicked.connect(self.take_overhead)
+        self.clear_floor_button = QPushButton("Clear marks")
+        self.clear_floor_button.clicked.connect(self.clear_floor_points)
+        row.addWidget(self.take_over_button)
+        row.addWidget(self.clear_floor_button)
+        fv.addLayout(row)
+        self.floor_table = QTableWidget(4, 4)
+        self.floor_table.setHorizontalHeaderLabels(["u (px)", "v (px)", "floor x (m)",
+                                                    "floor y (m)"])
+        self.floor_table.setVerticalHeaderLabels([f"F{k + 1}" for k in range(4)])
+        self.floor_table.setToolTip("u, v: where the mark is in the overhead picture (click "
+                                    "it); floor x, y: where it is on the studio floor")
+        self.floor_table.horizontalHeader().setStretchLastSection(True)
+        self.floor_table.setMinimumHeight(150)
+        for r in range(4):
+            for c in range(4):
+                self.floor_table.setItem(r, c, QTableWidgetItem(""))
+        fv.addWidget(self.floor_table)
+        grid = QGridLayout()
+        self.robot_x = QDoubleSpinBox()
+        self.robot_y = QDoubleSpinBox()
+        for box in (self.robot_x, self.robot_y):
+            box.setRange(-100.0, 100.0)
+            box.setDecimals(3)
+            box.setSingleStep(0.1)
+            box.setSuffix(" m")
+        self.focal = QDoubleSpinBox()
+        self.focal.setRange(0.0, 20000.0)
+        self.focal.setDecimals(1)
+        self.focal.setSuffix(" px")
+        self.focal.setSpecialValueText("solve")
+        self.focal.setToolTip("The overhead camera's focal length; 0 = solve it from the four "
+                              "marks (not possible for a camera looking straight down)")
+        grid.addWidget(QLabel("robot floor x"), 0, 0)
+        grid.addWidget(self.robot_x, 0, 1)
+        grid.addWidget(QLabel("robot floor y"), 1, 0)
+        grid.addWidget(self.robot_y, 1, 1)
+        grid.addWidget(QLabel("focal length"), 2, 0)
+        grid.addWidget(self.focal, 2, 1)
+        fv.addLayout(grid)
+        self.floor_save_button = QPushButton("Calibrate and save to project")
+        self.floor_save_button.setToolTip("Compute the floor homography and keep it in the "
+                                          "studio project (File > Save writes it); the "
+                                          "tracker uses it from the next Start")
+        self.floor_save_button.clicked.connect(self.save_floor_calibration)
+        fv.addWidget(self.floor_save_button)
+        self.floor_status = QLabel("No floor calibration.")
+        self.floor_status.setWordWrap(True)
+        self.floor_status.setObjectName("readout")
+        fv.addWidget(self.floor_status)
+        fv.addStretch(1)
+
+    def _show_loss_plot(self) -> None:
+        """The plot of the loss test the parameters select (contrast z or likelihood P)."""
+        contrast = self.form.params.loss_test == "contrast"
+        self.z_plot.setVisible(contrast)
+        self.p_plot.setVisible(not contrast)
+
+    @Slot()
+    def take_overhead(self) -> None:
+        """The second view of the source's first frame (and a source's own calibration)."""
+        from engine.errors import StudioTrackError
+        from engine.floor import OverheadView
+        from engine.sources import open_source
+
+        try:
+            with open_source(self.source_edit.text()) as src:
+                frame = next(iter(src.frames()), None)
+        except (StudioTrackError, OSError) as exc:
+            self._say(f"cannot take the overhead frame: {exc}", "error")
+            return
+        over = None if frame is None else frame.payload(OverheadView)
+        if over is None:
+            self._say("this source has no second view (try synthetic:...,views=2 or "
+                      "twoview:front=...,over=...)", "warning")
+            return
+        self.set_overhead(np.array(over.color_bgr), over.floor_calibration)
+
+    def set_overhead(self, image_bgr: np.ndarray, calib: Any = None) -> None:
+        self.over_reference = image_bgr
+        self.over_canvas.set_image(image_bgr)
+        if calib is not None and len(calib.image_points_px) == 4 and self.floor_calib is None:
+            # the source knows its calibration (built-in studio): show it as the marks
+            self._fill_floor(calib)
+        h, w = image_bgr.shape[:2]
+        self._say(f"overhead frame {w}x{h} taken: click four floor marks on it")
+
+    def _fill_floor(self, calib: Any) -> None:
+        self.over_canvas.set_floor_points(list(calib.image_points_px))
+        for r, ((u, v), (x, y)) in enumerate(zip(calib.image_points_px, calib.floor_points_m,
+                                                  strict=True)):
+            for c, val in enumerate((u, v, x, y)):
+                self.floor_table.item(r, c).setText(f"{val:.3f}" if c >= 2 else f"{val:.1f}")
+        self.robot_x.setValue(calib.robot_floor_xy_m[0])
+        self.robot_y.setValue(calib.robot_floor_xy_m[1])
+        self.focal.setValue(calib.f_px or 0.0)
+
+    @Slot()
+    def clear_floor_points(self) -> None:
+        self.over_canvas.set_floor_points([])
+        for r in range(4):
+            for c in range(2):
+                self.floor_table.item(r, c).setText("")
+
     @Slot(float, float)
     def _on_floor_point(self, x: float, y: float) -> None:
-        n = len(self.canvas.floor_points)
-        self._say(f"floor point F{n} at ({x:.0f}, {y:.0f}) px"
-                  + (" - four points: enter their floor coordinates in the overhead "
-                     "calibration file" if n == 4 else ""))
+        n = len(self.over_canvas.floor_points)
+        self.floor_table.item(n - 1, 0).setText(f"{x:.1f}")
+        self.floor_table.item(n - 1, 1).setText(f"{y:.1f}")
+        self._say(f"floor mark F{n} at ({x:.0f}, {y:.0f}) px"
+                  + (" - type the four marks' floor coordinates, then Calibrate"
+                     if n == 4 else ""))
+
+    def _floor_table_values(self) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+        img, flo = [], []
+        for r in range(4):
+            vals = []
+            for c in range(4):
+                text = self.floor_table.item(r, c).text().strip()
+                try:
+                    vals.append(float(text))
+                except ValueError:
+                    what = ("click it on the overhead picture" if c < 2 else
+                            "type its floor coordinate in metres")
+                    header = ("u (px)", "v (px)", "floor x (m)", "floor y (m)")[c]
+                    raise ValueError(f"F{r + 1}: {header} is missing ({what})") from None
+            img.append((vals[0], vals[1]))
+            flo.append((vals[2], vals[3]))
+        return img, flo
+
+    @Slot()
+    def save_floor_calibration(self) -> Any:
+        """Calibrate from the table; keep it in the project (and for the next run)."""
+        from engine.errors import CalibrationError
+        from engine.floor import calibrate_floor
+
+        try:
+            img, flo = self._floor_table_values()
+        except ValueError as exc:
+            self._say(f"floor calibration: {exc}", "error")
+            return None
+        wh = None
+        if self.over_reference is not None:
+            wh = (self.over_reference.shape[1], self.over_reference.shape[0])
+        try:
+            calib = calibrate_floor(img, flo, (self.robot_x.value(), self.robot_y.value()), wh,
+                                    self.focal.value() or None)
+        except CalibrationError as exc:
+            self._say(str(exc), "error")
+            return None
+        self.floor_calib = calib
+        P = calib.camera()
+        if P is not None:
+            C = -np.linalg.solve(P[:, :3], P[:, 3])
+            where = f"camera at ({C[0]:.2f}, {C[1]:.2f}) m, {C[2]:.2f} m above the floor"
+        else:
+            where = "camera not recovered (floor positions from the feet only)"
+        project = getattr(self.ctx, "project", None)
+        if project is not None and hasattr(project, "floor_calibration"):
+            project.floor_calibration = calib
+            project.mark_dirty()
+            saved = "kept in the project (File > Save writes it)"
+        else:
+            saved = "kept for this session (open or create a project to save it)"
+        self.floor_status.setText(f"Floor calibration OK: {where}; {saved}.")
+        self._say("floor calibration computed", "info")
+        return calib
+
+    def _floor_for_run(self) -> str:
+        """A floor.json for the tracker: this page's calibration, else the project's."""
+        from engine.floor import save_floor_calibration
+
+        calib = self.floor_calib
+        project = getattr(self.ctx, "project", None)
+        if calib is None and project is not None:
+            calib = getattr(project, "floor_calibration", None)
+        if calib is None:
+            return ""
+        path = self.model_dir().parent / "floor.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_floor_calibration(path, calib)
+        return str(path)
 
     # ------------------------------------------------------------------ persistence
     def model_dir(self) -> Path:
@@ -539,7 +791,8 @@ class PresenterPage(Page):
         path = self.save_model()
         if path is None:
             return False
-        params = dataclasses.replace(self.form.params, model_path=str(path.parent))
+        params = dataclasses.replace(self.form.params, model_path=str(path.parent),
+                                     floor_path=self._floor_for_run())
         self.form.set_params(params)
         self.hist_p.clear()
         self.hist_xy.clear()
@@ -583,6 +836,7 @@ class PresenterPage(Page):
         self.latest = None
         self.canvas.show_model = True
         self.canvas.set_live([], None, None, None, None)
+        self.over_canvas.set_live([], None, None, None, None)
         self.light.set_state(None, "STOPPED")
         self.readout.setText("Not tracking.")
         self.control_label.setText("Robot-camera control: shown while tracking.")
@@ -594,6 +848,7 @@ class PresenterPage(Page):
 
     @Slot(object)
     def _on_params(self, params: Any) -> None:
+        self._show_loss_plot()
         info = self.run.run_info
         if self.run.is_running and self.follows(info):
             self.run.set_params(params)
@@ -613,7 +868,9 @@ class PresenterPage(Page):
             raw, filt = ex.raw_xyh, ex.filtered_xyh
             d = ex.d_m
             self.hist_xy.append((raw[0], filt[0], raw[1], filt[1],
-                                 float("nan") if d is None else d))
+                                 float("nan") if d is None else d, ex.loss_z,
+                                 float("nan") if ex.overhead_loss_z is None
+                                 else ex.overhead_loss_z))
 
     @Slot()
     def redraw(self) -> None:
@@ -643,15 +900,12 @@ class PresenterPage(Page):
         if cmd is not None:
             target = (cmd.target_x_px, cmd.target_y_px)
         self.canvas.set_live(boxes, cross, parts, weights, target)
+        self._draw_overhead(rec, ex)
         self.light.set_state(res.state)
         st = self.run.status()
         fps = st.fps if st is not None else rec.fps
         if ex is not None:
-            self.readout.setText(
-                f"P {ex.p_col:.3g}   Pref {ex.p_ref:.3g}   Pmin {ex.p_min:.3g}\n"
-                f"particles {ex.n_particles}   lost frames {ex.lost_frames}\n"
-                f"jitter lag {ex.lag_frames:.1f} frames = {ex.lag_s:.2f} s   "
-                f"{fps:.0f} fps")
+            self.readout.setText(self._readout(ex, res, fps))
         elif res.message:
             self.readout.setText(res.message)
         if cmd is not None:
@@ -680,8 +934,48 @@ class PresenterPage(Page):
             self.y_f.setData(t, xy[:, 3])
             ok = np.isfinite(xy[:, 4])
             self.d_curve.setData(t[ok], xy[ok, 4])
+            ok5 = np.isfinite(xy[:, 5])
+            self.z_curve.setData(t[ok5], xy[ok5, 5])
+            okz = np.isfinite(xy[:, 6])
+            self.z_over.setData(t[okz], xy[okz, 6])
+            thr = self.form.params.loss_contrast
+            self.zmax_curve.setData([t[0], t[-1]], [thr, thr])
             self.d_plot.setTitle("d (m) from the overhead view" if ok.any()
                                  else "d: no overhead view in this source")
+
+
+    def _readout(self, ex: Any, res: Any, fps: float) -> str:
+        """The numbers of the drawn frame: the loss test the tracker runs, the views, d."""
+        p = self.form.params
+        if p.loss_test == "contrast":
+            z = "-" if not np.isfinite(ex.loss_z) else f"{ex.loss_z:.2f}"
+            test = f"contrast z {z} (LOST above {p.loss_contrast:.2f})"
+        else:
+            test = f"P {ex.p_col:.3g}   Pref {ex.p_ref:.3g}   Pmin {ex.p_min:.3g}"
+        lines = [f"{res.state.value}: {test}"]
+        if ex.overhead_state is not None:
+            lines.append(f"frontal {ex.frontal_state}   overhead {ex.overhead_state}")
+        if ex.floor_xy_m is not None:
+            h = "-" if ex.height_m is None else f"{ex.height_m:.2f} m"
+            d = "-" if ex.d_m is None else f"{ex.d_m:.2f} m"
+            lines.append(f"floor ({ex.floor_xy_m[0]:+.2f}, {ex.floor_xy_m[1]:+.2f}) m   "
+                         f"height {h}   d {d}")
+        lines.append(f"particles {ex.n_particles}   lost frames {ex.lost_frames}   "
+                     f"jitter lag {ex.lag_s:.2f} s   {fps:.0f} fps")
+        return "\n".join(lines)
+
+    def _draw_overhead(self, rec: Any, ex: Any) -> None:
+        from engine.floor import OverheadView
+
+        over = rec.frame.payload(OverheadView)
+        if over is None:
+            return
+        self.over_canvas.set_image(over.color_bgr)
+        boxes = []
+        if ex is not None and ex.overhead_box_xywh is not None:
+            label = f"presenter (overhead, {ex.overhead_state})"
+            boxes.append((ex.overhead_box_xywh, label))
+        self.over_canvas.set_live(boxes, None, None, None, None)
 
 
 def _factory(ctx: Any) -> QWidget:

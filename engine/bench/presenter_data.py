@@ -29,6 +29,8 @@ class Sequence:
     spec: str  # a source spec (``synthetic:...``) or a folder name under ../shared/data
     colour: bool = True  # colour content (mil_david is grey)
     studio: bool = False
+    #: studio: offer only the first box (the tracker splits it), not the per-part truth
+    box_only: bool = False
     description: str = ""
 
 
@@ -39,7 +41,9 @@ STUDIO_SEQUENCES: tuple[Sequence, ...] = (
     Sequence("studio", _S + "seed=3,path=rail", studio=True,
              description="rail camera, blue-shirt presenter walking (the original sequence)"),
     Sequence("studio_warm", _S + "seed=5,path=static,presenter_look=1,lighting=warm",
-             studio=True, description="static camera, red top, tungsten cast"),
+             studio=True, box_only=True,
+             description="static camera, red top, tungsten cast; the model from the first "
+                         "box only"),
     Sequence("studio_dim", _S + "seed=7,path=handheld,presenter_look=2,lighting=dim,"
              "width=480,height=360,presenter_y=3.0,presenter_xmin=-1.2,presenter_xmax=1.4",
              studio=True, description="hand-held 480x360, green jumper, dim light"),
@@ -52,8 +56,10 @@ STUDIO_SEQUENCES: tuple[Sequence, ...] = (
                          "in front"),
     Sequence("studio_diagonal", _S + "seed=19,path=static,presenter_look=6,presenter_y=1.6,"
              "presenter_dy=2.4,presenter_xmin=-0.6,presenter_xmax=1.6,width=480,height=360",
-             studio=True, description="static 480x360, purple top walking diagonally towards "
-                                      "and away from the camera (its size changes 2.5x)"),
+             studio=True, box_only=True,
+             description="static 480x360, purple top walking diagonally towards and away "
+                         "from the camera (its size changes 2.5x); the model from the first "
+                         "box only"),
     Sequence("studio_far", _S + "seed=17,path=static,presenter_look=5,lighting=cool,"
              "presenter_y=2.8,person2=behind,person2_look=6,width=320,height=240",
              studio=True, description="static 320x240, white shirt far from the camera, "
@@ -80,6 +86,22 @@ def _fully_in_view(f: Frame, margin_px: float = 2.0) -> bool:
         and y + h <= H - margin_px
 
 
+def _box_only(f: Frame) -> Frame:
+    """The frame as a real sequence gives it: the truth box, no label map or part boxes."""
+    from dataclasses import replace
+
+    from engine.studio.sim import StudioLabels, StudioTruth
+
+    kept = []
+    for p in f.payloads:
+        if isinstance(p, StudioLabels):
+            continue
+        if isinstance(p, StudioTruth):
+            p = replace(p, presenter_part_boxes=None)
+        kept.append(p)
+    return replace(f, payloads=tuple(kept))
+
+
 def load(name: str, n_frames: int = 0) -> list[Frame]:
     """Frames of sequence ``name`` (at most ``n_frames``; 0 = all, studio 300), cached.
 
@@ -101,6 +123,8 @@ def load(name: str, n_frames: int = 0) -> list[Frame]:
         frames: list[Frame] = []
         for i in range(len(src)):
             f = src.frame(i)
+            if seq.box_only:
+                f = _box_only(f)
             if frames or _fully_in_view(f):
                 frames.append(f)
             if len(frames) >= n:

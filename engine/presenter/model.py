@@ -198,12 +198,26 @@ def patch_histograms(image_bgr: NDArray[np.uint8],
     return out
 
 
+#: a standing person's box (at least twice as tall as wide): head, torso and legs do not fill
+#: it side to side, so each band keeps its middle (head narrow, torso with the arms wider):
+#: the patches an operator would drag, with little of the background around the body
+FULL_BODY_ASPECT = 0.5
+BODY_BAND_WIDTHS = {3: (0.5, 0.8, 0.6)}
+
+
 def auto_patches(main_xywh: Sequence[float], n: int = 3) -> tuple[PatchSpec, ...]:
-    """Split a main region into ``n`` horizontal bands (head / torso / legs for n = 3)."""
+    """Split a main region into ``n`` horizontal bands (head / torso / legs for n = 3); for a
+    full-body box (width / height <= 0.5) the three bands keep their middle only
+    (``BODY_BAND_WIDTHS``)."""
     if n not in AUTO_SPLITS:
         raise PresenterError(f"automatic split supports 2, 3 or 4 patches, got {n}")
     x, y, w, h = (float(v) for v in main_xywh)
-    return tuple(PatchSpec(name, (x, y + a * h, w, (b - a) * h)) for name, a, b in AUTO_SPLITS[n])
+    widths = BODY_BAND_WIDTHS.get(n) if h > 0 and w / h <= FULL_BODY_ASPECT else None
+    out = []
+    for k, (name, a, b) in enumerate(AUTO_SPLITS[n]):
+        f = 1.0 if widths is None else widths[k]
+        out.append(PatchSpec(name, (x + 0.5 * (1.0 - f) * w, y + a * h, f * w, (b - a) * h)))
+    return tuple(out)
 
 
 def model_from_box(image_bgr: NDArray[np.uint8], box_xywh: Sequence[float], n_patches: int = 3,

@@ -12,15 +12,16 @@ Per frame (VR-TV paper, Fig. 5):
    first ``pref_init_frames`` tracked frames (the first frame matches its own model exactly)
    that then follows P slowly while P >= 60 % of it. The default (``'contrast'``) asks
    whether the estimate still looks like the *first frame's* patches rather than like the
-   background: z = (sum_p B_p^2(s_t) - mu) / (beta - mu), with B_p^2 against the fixed first
-   model (an adapted model follows a tracker that slid onto the desk), mu the target's own
-   level (median over the first tracked frames, then slowly adapted while z is small) and
-   beta the level of the most target-like tenth of boxes sampled over the first frame's
-   background (the desk, a similar wall). z = 0 is the target, 1 the best background; LOST
-   while z > ``loss_contrast``. While LOST the output holds the last good position and the
-   filter searches with a diffuse prior of ``reinit_particles`` particles (half fresh every
-   frame, half resampled from the last search) until the test passes again at the search's
-   best hypothesis for ``reacquire_frames`` frames.
+   background: per patch z_p = (B_p^2(s_t) - mu_p) / (beta_p - mu_p), with B_p^2 against the
+   anchored model (its first-frame share keeps a tracker that slid onto the desk from
+   matching), mu_p the target's own level (median over the first tracked frames, then slowly
+   adapted while z is small) and beta_p the level of the most target-like tenth of boxes
+   sampled over this frame's background (the desk, a similar wall), and z the median over
+   the patches. z = 0 is the target, 1 the best background; LOST while z > ``loss_contrast``.
+   While LOST the output holds the last good position and the filter searches with a
+   diffuse prior of ``reinit_particles`` particles (half fresh every frame, half resampled
+   from the last search) until the test passes again at the search's best hypothesis for
+   ``reacquire_frames`` frames.
 
 Beyond the paper (each switchable, measured in ``studiotrack bench presenter``):
 - slow model update: while P >= ``model_update_ratio`` x Pref the adapted patch histograms
@@ -149,11 +150,13 @@ class ViewTracker:
         area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
         pooled = (area / max(float(area.sum()), 1e-12)) @ self._hist0
         self._sqrt_pooled = np.ascontiguousarray(np.sqrt(pooled))  # target colours: ring
-        self._mu: float | None = None  # target level of sum B^2 (contrast loss test)
-        self._beta: float | None = None  # most target-like background level
-        self._mu_boot: list[float] = []
+        # contrast loss test, per patch: the target's own B_p^2 level and the most
+        # target-like background's
+        self._mu: F64 | None = None
+        self._beta: F64 | None = None
+        self._mu_boot: list[F64] = []
         self._bg_rng = np.random.default_rng([params.seed, 17])
-        self._last_fixed = float("nan")
+        self._last_fixed: F64 | None = None
         self.loss_z = float("nan")
 
     # ------------------------------------------------------------------ configuration
@@ -227,16 +230,17 @@ class ViewTracker:
                                 self._sqrt_ref)
 
     def _fixed_residual(self, ctx: Any, states: F64) -> F64:
-        """sum_p B_p^2 against the anchored model without background weighting (loss test)."""
+        """B_p^2 (states x patches) against the anchored model without background weighting
+        (the loss test's reference)."""
         integral, cell, roi, wh = ctx
-        return np.asarray(patch_residuals(integral, cell, roi, wh, states, self._rel,
-                                          self.model.aspect, self._sqrt_ref0).sum(axis=1),
-                          dtype=np.float64)
+        return patch_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
+                               self._sqrt_ref0)
 
     def _background_levels(self, bgr: NDArray[np.uint8], xyh: F64) -> None:
-        """beta: the BG_QUANTILE of sum_p B_p^2 over boxes of the target's size sampled over
-        this frame away from ``xyh`` (IoU < 0.1), on a coarse whole-frame integral histogram;
-        smoothed over frames. It follows global light changes of the background."""
+        """beta_p: per patch, the BG_QUANTILE of B_p^2 over boxes of the target's size sampled
+        over this frame away from ``xyh`` (IoU < 0.1), on a coarse whole-frame integral
+        histogram; smoothed over frames. It follows global light changes of the
+        background."""
         H, W = bgr.shape[:2]
         x, y, h = (float(v) for v in xyh)
         w = h * self.model.aspect
@@ -264,20 +268,22 @@ class ViewTracker:
         states = np.stack([cx[keep], cy[keep], hs[keep]], axis=1) / step
         integral, c, roi, wh = ctx
         r = patch_residuals(integral, c, roi, wh, states, self._rel, self.model.aspect,
-                            self._sqrt_ref0).sum(axis=1)
-        beta = float(np.quantile(r, BG_QUANTILE))
+                            self._sqrt_ref0)
+        beta = np.quantile(r, BG_QUANTILE, axis=0)
         self._beta = beta if self._beta is None else self._beta + 0.2 * (beta - self._beta)
 
     def _loss_z(self, ctx: Any, xyh: F64) -> float:
-        """z = (sum_p B_p^2 - mu) / (beta - mu) at ``xyh`` (NaN before mu is known)."""
+        """z = median over the patches of (B_p^2 - mu_p) / (beta_p - mu_p) at ``xyh`` (NaN
+        before mu is known): one patch that changes (a turn, background between the legs, a
+        hand in front) does not decide, all of them on the background do."""
         if ctx is None:
             return float("nan")
-        r = float(self._fixed_residual(ctx, xyh[None, :])[0])
+        r = np.asarray(self._fixed_residual(ctx, xyh[None, :])[0], dtype=np.float64)
         self._last_fixed = r
         if self._mu is None or self._beta is None:
             return float("nan")
-        n = len(self._rel)
-        return (r - self._mu) / max(self._beta - self._mu, 0.05 * n)
+        zp = (r - self._mu) / np.maximum(self._beta - self._mu, 0.05)
+        return float(np.median(zp))
 
     def _patch_hists(self, ctx: Any, xyh: F64) -> F64 | None:
         """Normalised patch histograms at one state from the frame's integral (None if a
@@ -408,9 +414,9 @@ class ViewTracker:
             # Pref from the first tracked frames, not the self-match of the first one
             self._p_boot.append(p_col)
             self.p_ref = float(np.median(self._p_boot))
-            if ctx is not None:
+            if ctx is not None and self._last_fixed is not None:
                 self._mu_boot.append(self._last_fixed)
-                self._mu = float(np.median(self._mu_boot))
+                self._mu = np.median(np.asarray(self._mu_boot), axis=0)
         assert self.p_ref is not None
         p_min = p.loss_percent / 100.0 * self.p_ref
         if p.loss_test == "contrast" and math.isfinite(z):
@@ -430,10 +436,10 @@ class ViewTracker:
                 self.last_good_xyh = mean.copy()
                 if not booting and p_col >= p.pref_adapt_ratio * self.p_ref:  # slow Pref adapt
                     self.p_ref += p.pref_adapt_rate * (p_col - self.p_ref)
-                if not booting and self._mu is not None and math.isfinite(z) \
-                        and z < 0.5 * p.loss_contrast:
+                if not booting and self._mu is not None and self._last_fixed is not None \
+                        and math.isfinite(z) and z < 0.5 * p.loss_contrast:
                     # the target's own level follows slow changes of pose and light
-                    self._mu += p.pref_adapt_rate * (self._last_fixed - self._mu)
+                    self._mu = self._mu + p.pref_adapt_rate * (self._last_fixed - self._mu)
                 if p.loss_test == "contrast" and math.isfinite(z):
                     confident = z < p.model_update_ratio * p.loss_contrast
                 else:

@@ -68,6 +68,7 @@ class PresenterDetails(TrackDetails):
     floor_xy_m: tuple[float, float] | None = None
     height_m: float | None = None  # standing height from the second view (head height)
     frontal_state: str = "TRACKING"
+    overhead_loss_z: float | None = None
     #: contrast loss statistic at the tested state: 0 = the target's own colour match,
     #: 1 = the most target-like background's (NaN until known)
     loss_z: float = float("nan")
@@ -272,6 +273,7 @@ class PresenterTracker:
             overhead_state=None if over_out is None else over_out.state,
             overhead_box_xywh=obox, floor_xy_m=floor_xy, height_m=height,
             frontal_state=out.state,
+            overhead_loss_z=None if over_out is None else float(over_out.loss_z),
         )
         bx, bw = out.box_cx_w if out.box_cx_w is not None else (x, w)
         return TrackResult(

@@ -70,7 +70,8 @@ def test_drag_main_region_and_three_patches_then_track(qtbot, ctx) -> None:  # t
     qtbot.waitUntil(lambda: (page.display_tick(), page._frames >= 5)[1], timeout=30000)
     page.redraw()
     assert page.light.state is not None
-    assert "P " in page.readout.text()
+    assert "contrast z" in page.readout.text()  # the default loss test, with its threshold
+    assert "LOST above" in page.readout.text()
     assert "e_f" in page.control_label.text()
     # a live edit goes to the engine as SetParams
     editor = page.form.editor("n_particles")
@@ -112,3 +113,53 @@ def test_degenerate_selection_message(qtbot, ctx) -> None:  # type: ignore[no-un
         assert page.start_tracking() is True
     with qtbot.waitSignal(page.run.finished, timeout=20000):
         page.stop_tracking()
+
+
+TWO_VIEW = ("synthetic:frames=60,width=320,height=240,seed=3,presenter=1,path=static,"
+            "views=2")
+
+
+def test_two_views_floor_calibration_and_distance(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
+    from app.pages.presenter import PresenterPage
+    from engine.project import new_project
+
+    ctx.set_project(new_project("show"))
+    page = PresenterPage(ctx)
+    qtbot.addWidget(page)
+    page.resize(1280, 800)
+    page.show()
+    page.source_edit.setText(TWO_VIEW)
+    page.realtime_check.setChecked(False)
+    page.take_reference()
+    # the second view came with the reference, and the studio's floor marks with it
+    assert page.over_reference is not None
+    assert len(page.over_canvas.floor_points) == 4
+    assert page.floor_table.item(3, 3).text() != ""
+    # a missing coordinate is a one-line message, not a calibration
+    page.floor_table.item(2, 2).setText("")
+    assert page.save_floor_calibration() is None
+    assert "F3" in page.message.text()
+    page.floor_table.item(2, 2).setText("1.000")
+    calib = page.save_floor_calibration()
+    assert calib is not None
+    assert ctx.project.floor_calibration is calib
+    assert ctx.project.dirty
+    assert "above the floor" in page.floor_status.text()
+    from engine.sources import open_source
+
+    with open_source(TWO_VIEW) as src:
+        box = next(iter(src.frames())).gt_box_xywh
+    page.canvas.set_model(box, [])
+    page.auto_split()
+    with qtbot.waitSignal(page.run.started, timeout=20000):
+        assert page.start_tracking() is True
+    assert page.form.params.floor_path.endswith("floor.json")
+    qtbot.waitUntil(lambda: (page.display_tick(), page._frames >= 8)[1], timeout=30000)
+    page.redraw()
+    text = page.readout.text()
+    assert "overhead" in text
+    assert "floor (" in text
+    assert page.over_canvas.overlay_boxes
+    with qtbot.waitSignal(page.run.finished, timeout=20000):
+        page.stop_tracking()
+    assert page.over_canvas.overlay_boxes == []
