@@ -79,8 +79,8 @@ class HistogramTile(QWidget):
         self.hist = np.asarray(hist, dtype=np.float64)
         self.n = n_bins
         self.colour = QColor(colour)
-        self.setToolTip(f"{name}: hue (across) x saturation (down) histogram; bottom row: "
-                        "brightness of pixels without a hue")
+        self.setToolTip(f"{name}: hue (across) x saturation (up) histogram; bottom row: "
+                        "brightness of the pixels without a hue (grey, black, white)")
         self.setFixedSize(self.sizeHint())
 
     def sizeHint(self) -> QSize:
@@ -108,7 +108,7 @@ class HistogramTile(QWidget):
                    "saturation →")
         p.restore()
         p.drawText(QRectF(AXIS_PX, 28 + (n + 1) * c + 6, n * c + 4, 12),
-                   Qt.AlignmentFlag.AlignLeft, "no hue: brightness →")
+                   Qt.AlignmentFlag.AlignLeft, "brightness →")
         p.translate(AXIS_PX - 4, 12)
         top = 16.0
         hs = self.hist[: n * n].reshape(n, n)  # [hue bin, sat bin]
@@ -117,7 +117,7 @@ class HistogramTile(QWidget):
         for hb in range(n):
             for sb in range(n):
                 col = QColor.fromHsvF((hb + 0.5) / n, (sb + 0.5) / n, 1.0)
-                x, y = 4 + hb * c, top + sb * c
+                x, y = 4 + hb * c, top + (n - 1 - sb) * c  # saturation grows upwards
                 p.fillRect(QRectF(x, y, c - 1, c - 1), col.darker(350))
                 frac = float(np.sqrt(hs[hb, sb] / vmax))
                 if frac > 0.02:
@@ -257,7 +257,7 @@ class PresenterPage(Page):
                                            name="Pmin")
         self.pref_curve = self.p_plot.plot(pen=pg.mkPen("#4cc3ff", style=Qt.PenStyle.DashLine),
                                            name="Pref")
-        self.z_plot = pg.PlotWidget(title="Loss test: colour contrast z")
+        self.z_plot = pg.PlotWidget(title="Loss test z")
         self.z_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=2)
         self.z_plot.setToolTip("z: the patches' colour distance from the model, 0 = the "
                                "presenter's own level, 1 = the most presenter-like "
@@ -940,8 +940,7 @@ class PresenterPage(Page):
             self.z_over.setData(t[okz], xy[okz, 6])
             thr = self.form.params.loss_contrast
             self.zmax_curve.setData([t[0], t[-1]], [thr, thr])
-            self.d_plot.setTitle("d (m) from the overhead view" if ok.any()
-                                 else "d: no overhead view in this source")
+            self.d_plot.setTitle("Floor distance d" if ok.any() else "d: no second view")
 
 
     def _readout(self, ex: Any, res: Any, fps: float) -> str:

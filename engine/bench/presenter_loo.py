@@ -49,6 +49,7 @@ COARSE: tuple[Knob, ...] = (
 FINE: tuple[Knob, ...] = (
     Knob("lambda_col", (0.1, 0.15, 0.22), start=0.15),
     Knob("loss_contrast", (0.4, 0.5, 0.7), start=0.5),
+    Knob("loss_bg_quantile", (0.1, 0.3, 0.5), start=0.1),
     Knob("velocity_gain", (0.25, 0.5, 0.75), start=0.5),
     Knob("fit_width", (True, False), start=True),
     Knob("fit_width_max_frac", (1.6, 2.2), start=2.2),

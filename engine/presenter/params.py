@@ -93,6 +93,11 @@ class PresenterParams(Params):
     loss_contrast: float = param(0.5, lo=0.05, hi=2.0, step=0.05,
                                  help="contrast loss test: LOST while z > this (0.5 = half-way "
                                  "from the target's colour match to the background's)")
+    loss_bg_quantile: float = param(0.1, lo=0.01, hi=0.9, step=0.05,
+                                    help="contrast loss test: the background level is this "
+                                    "quantile of the sampled background boxes' colour distance "
+                                    "(0.1 = the most presenter-like tenth: the desk, a similar "
+                                    "wall; 0.5 = typical background)")
     loss_percent: float = param(0.1, lo=0.0, hi=100.0, step=0.01,
                                 help="likelihood loss test: loss when P(z_col|s) < Pmin = this "
                                 "% of Pref, i.e. sum B^2 worse than the reference by "

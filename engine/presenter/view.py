@@ -79,10 +79,9 @@ LOST = "LOST"
 #: (``PresenterParams.fit_width``): a standing presenter is ~3-4x as tall as wide, a head or
 #: face box ~1-1.5x; the rule looks at the first frame's box only
 FULL_BODY_ASPECT = 0.5
-#: background boxes sampled on the first frame for the contrast loss test, and the quantile of
-#: their colour distance taken as "the most target-like background"
+#: background boxes sampled for the contrast loss test (the quantile of their colour distance
+#: taken as the background's level is ``PresenterParams.loss_bg_quantile``)
 BG_SAMPLES = 96
-BG_QUANTILE = 0.1
 BG_EVERY = 3  # frames between two background samplings (it changes slowly)
 
 
@@ -237,7 +236,7 @@ class ViewTracker:
                                self._sqrt_ref0)
 
     def _background_levels(self, bgr: NDArray[np.uint8], xyh: F64) -> None:
-        """beta_p: per patch, the BG_QUANTILE of B_p^2 over boxes of the target's size sampled
+        """beta_p: per patch, the ``loss_bg_quantile`` of B_p^2 over boxes of the target's size sampled
         over this frame away from ``xyh`` (IoU < 0.1), on a coarse whole-frame integral
         histogram; smoothed over frames. It follows global light changes of the
         background."""
@@ -269,7 +268,7 @@ class ViewTracker:
         integral, c, roi, wh = ctx
         r = patch_residuals(integral, c, roi, wh, states, self._rel, self.model.aspect,
                             self._sqrt_ref0)
-        beta = np.quantile(r, BG_QUANTILE, axis=0)
+        beta = np.quantile(r, self.params.loss_bg_quantile, axis=0)
         self._beta = beta if self._beta is None else self._beta + 0.2 * (beta - self._beta)
 
     def _loss_z(self, ctx: Any, xyh: F64) -> float:
