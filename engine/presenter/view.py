@@ -236,9 +236,9 @@ class ViewTracker:
                                self._sqrt_ref0)
 
     def _background_levels(self, bgr: NDArray[np.uint8], xyh: F64) -> None:
-        """beta_p: per patch, the ``loss_bg_quantile`` of B_p^2 over boxes of the target's size sampled
-        over this frame away from ``xyh`` (IoU < 0.1), on a coarse whole-frame integral
-        histogram; smoothed over frames. It follows global light changes of the
+        """beta_p: per patch, the ``loss_bg_quantile`` of B_p^2 over boxes of the target's
+        size sampled over this frame away from ``xyh`` (IoU < 0.1), on a coarse whole-frame
+        integral histogram; smoothed over frames. It follows global light changes of the
         background."""
         H, W = bgr.shape[:2]
         x, y, h = (float(v) for v in xyh)
