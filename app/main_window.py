@@ -7,6 +7,8 @@ window down. Engine failures and logged warnings/errors appear in the status bar
 
 from __future__ import annotations
 
+import collections
+import time
 import traceback
 
 from PySide6.QtCore import QByteArray, QSize, Qt, QTimer, Slot
@@ -119,6 +121,8 @@ class MainWindow(QMainWindow):
         self.display_timer.setInterval(round(1000 / DISPLAY_HZ))
         self.display_timer.timeout.connect(self.display_tick)
         self._ticks = 0
+        #: GUI thread time per display tick (ms, last 600): what drawing costs
+        self.tick_ms: collections.deque[float] = collections.deque(maxlen=600)
         self.display_timer.start()
         ctx.run.started.connect(self._on_started)
         ctx.run.failed.connect(self._on_failed)
@@ -162,6 +166,13 @@ class MainWindow(QMainWindow):
     @Slot()
     def display_tick(self, force_header: bool = False) -> None:
         """The display clock: engine events to the log, the header, the shown page."""
+        t0 = time.perf_counter()
+        try:
+            self._display_tick(force_header)
+        finally:
+            self.tick_ms.append((time.perf_counter() - t0) * 1000.0)
+
+    def _display_tick(self, force_header: bool) -> None:
         run = self.ctx.run
         run.poll()
         run.take_latest()  # the display takes the newest record; skipped ones count as drops

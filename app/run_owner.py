@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import queue
+import sys
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -56,6 +58,11 @@ _THREADS: list[QThread] = []
 
 #: light history kept per run for plots (a page hidden this long catches up when shown)
 TRACE_SIZE = 2048
+#: the interpreter's thread switch interval while a run is on (default 5 ms): the engine and
+#: sender threads get the interpreter back within 1 ms of the GUI thread's Python drawing
+SWITCH_INTERVAL_S = 0.001
+#: a run's status is recomputed at most this often for the window (percentiles, health)
+STATUS_MAX_AGE_S = 0.1
 
 DEFAULT_OUTPUTS = OutputConfig(
     targets=(
@@ -141,8 +148,12 @@ class RunThread(QThread):
         self._open_source = open_source
         self._create_tracker = create_tracker
         self.pipeline: Pipeline | None = None  # set on the engine thread once opened
+        self.native_id: int | None = None  # the OS thread id (CPU accounting in benches)
 
     def run(self) -> None:
+        import threading
+
+        self.native_id = threading.get_native_id()
         source: Source | None = None
         status: RunStatus | None = None
         req = self.request
@@ -242,6 +253,7 @@ class RunOwner(QObject):
         self.outputs_enabled = False
         self._pose_sink: PoseOutputSink | None = None
         self._view_publish: Callable[..., Any] | None = None
+        self._status_cache: tuple[Any, float, RunStatus] | None = None
         self._view_sink: ViewFeedSink | None = None
 
     # ------------------------------------------------------------------ state
@@ -281,16 +293,29 @@ class RunOwner(QObject):
         return p.trace.since(cursor)
 
     @property
+    def engine_thread_id(self) -> int | None:
+        """The OS id of the current run's engine thread (None before it started)."""
+        t = self._current
+        return None if t is None else t.native_id
+
+    @property
     def frames_received(self) -> int:
         """Frames the current (or last) run processed."""
         st = self.status()
         return st.frames if st is not None else 0
 
     def status(self) -> RunStatus | None:
-        """The running run's status; after it ended, its final status (None before any)."""
+        """The running run's status (at most :data:`STATUS_MAX_AGE_S` old: the header, the
+        pages and the display clock all ask); after it ended, its final status."""
         p = self.pipeline
         if p is not None and self.is_running:
-            return p.status()
+            now = time.monotonic()
+            cached = self._status_cache
+            if cached is not None and cached[0] is p and now - cached[1] < STATUS_MAX_AGE_S:
+                return cached[2]
+            st = p.status()
+            self._status_cache = (p, now, st)
+            return st
         return self.final_status
 
     # ---------------------------------------------------------------- control
@@ -316,6 +341,7 @@ class RunOwner(QObject):
         self._commands = queue.Queue()
         self.request = request
         self.run_info = None
+        self._status_cache = None
         self.last_error = None
         self.final_status = None
         self.stopped_by_user = False
@@ -330,6 +356,8 @@ class RunOwner(QObject):
         if self._view_publish is not None and _outputs_pose(request.tracker):
             self._view_sink = ViewFeedSink(self._view_publish)
             sinks.append(self._view_sink)
+        if sys.getswitchinterval() > SWITCH_INTERVAL_S:
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
         thread = RunThread(self._run_id, request, sinks, self._commands, self._open_source,
                            self._create_tracker)
         thread.opened.connect(self._on_opened)

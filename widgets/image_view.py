@@ -2,7 +2,8 @@
 
 Overlays, all in pixel coordinates of the image:
 - points coloured by weight, green (used, weight 1) to red (rejected, weight 0), as in
-  Tykkälä 2014 Fig. 15; drawn as a few colour buckets so thousands of points stay cheap;
+  Tykkälä 2014 Fig. 15; drawn as a few colour buckets, each one line-segment path (a short
+  thick dash per point: a numpy-built path, ~10x cheaper to set than scatter symbols);
 - boxes with labels (tracker boxes solid, the ground-truth box dashed white);
 - polylines; a crosshair.
 """
@@ -47,7 +48,9 @@ def bucket_weights(weights: NDArray[np.floating], n: int = N_WEIGHT_BUCKETS) -> 
 
 def bgr_to_rgb(image: NDArray[np.uint8]) -> NDArray[np.uint8]:
     if image.ndim == 3 and image.shape[2] == 3:
-        return np.ascontiguousarray(image[..., ::-1])
+        import cv2
+
+        return np.asarray(cv2.cvtColor(image, cv2.COLOR_BGR2RGB))  # releases the GIL
     return np.ascontiguousarray(image)
 
 
@@ -65,12 +68,14 @@ class ImageView(pg.GraphicsLayoutWidget):
         self._image: NDArray[np.uint8] | None = None
         self._shape: tuple[int, ...] | None = None
 
-        self._point_items: list[pg.ScatterPlotItem] = []
+        self._point_items: list[pg.PlotCurveItem] = []
+        self._point_counts = [0] * N_WEIGHT_BUCKETS
         for b in range(N_WEIGHT_BUCKETS):
             colour = weight_colour((b + 0.5) / N_WEIGHT_BUCKETS)
-            item = pg.ScatterPlotItem(
-                size=POINT_SIZE_PX, pen=None, brush=pg.mkBrush(colour), pxMode=True, symbol="s"
-            )
+            pen = pg.mkPen(colour, width=POINT_SIZE_PX + 1)
+            pen.setCosmetic(True)
+            pen.setCapStyle(Qt.PenCapStyle.FlatCap)
+            item = pg.PlotCurveItem(pen=pen, connect="pairs", skipFiniteCheck=True)
             item.setZValue(10)
             self.view.addItem(item)
             self._point_items.append(item)
@@ -117,22 +122,36 @@ class ImageView(pg.GraphicsLayoutWidget):
         self, points_uv: NDArray[np.floating] | None, weights: NDArray[np.floating] | None
     ) -> None:
         """Points (N, 2) coloured by weight in [0, 1] (all green when weights are None)."""
+        empty = np.zeros(0)
         if points_uv is None or len(points_uv) == 0:
-            for item in self._point_items:
-                item.setData(x=[], y=[])
+            for b, item in enumerate(self._point_items):
+                if self._point_counts[b]:
+                    item.setData(x=empty, y=empty)
+                self._point_counts[b] = 0
             return
         uv = np.asarray(points_uv, dtype=np.float64).reshape(-1, 2)
+        uv = uv[np.isfinite(uv).all(axis=1)]
         if weights is None:
             buckets = np.full(len(uv), N_WEIGHT_BUCKETS - 1)
         else:
             buckets = bucket_weights(np.asarray(weights).reshape(-1)[: len(uv)])
+        half = 0.5 * POINT_SIZE_PX
         for b, item in enumerate(self._point_items):
-            sel = buckets == b
-            item.setData(x=uv[sel, 0], y=uv[sel, 1])
+            sel = uv[buckets == b]
+            n = len(sel)
+            if n == 0 and self._point_counts[b] == 0:
+                continue
+            # each point: a dash from u - half to u + half at v (drawn with connect="pairs")
+            x = np.empty(2 * n)
+            x[0::2] = sel[:, 0] - half
+            x[1::2] = sel[:, 0] + half
+            y = np.repeat(sel[:, 1], 2)
+            item.setData(x=x, y=y)
+            self._point_counts[b] = n
 
     def point_counts(self) -> list[int]:
         """Points drawn per weight bucket (red first) - for tests and the legend."""
-        return [len(item.data) for item in self._point_items]
+        return list(self._point_counts)
 
     def set_boxes(
         self,

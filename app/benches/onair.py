@@ -123,6 +123,8 @@ class OnAirResult:
     stall_ms: float
     stats: Any
     state_counts: dict[str, int] = field(default_factory=dict)
+    tick_ms: list[float] = field(default_factory=list)
+    cpu_s: dict[str, float] = field(default_factory=dict)
     alarms: list[str] = field(default_factory=list)
 
 
@@ -173,9 +175,23 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
     def start() -> None:
         ctx.run.start(RunRequest(source, tracker, realtime=True, page="Live"))
 
+    def cpu_by_thread() -> dict[str, float]:
+        """CPU seconds so far of the GUI, engine and sender threads (psutil, Linux)."""
+        import psutil
+
+        ids = {"gui": threading.main_thread().native_id, "engine": ctx.run.engine_thread_id}
+        sink = ctx.run._pose_sink
+        out = sink.outputs if sink is not None else None
+        th = getattr(out, "_thread", None)
+        ids["sender"] = getattr(th, "native_id", None)
+        times = {t.id: t.user_time + t.system_time for t in psutil.Process().threads()}
+        return {k: times.get(v, float("nan")) if v is not None else float("nan")
+                for k, v in ids.items()}
+
     def begin() -> None:
         marks["t0"] = time.monotonic()
         marks["t1"] = marks["t0"]
+        state["cpu0"] = cpu_by_thread()
         p = ctx.run.pipeline
         state["cursor"] = p.trace.total if p is not None else 0
         state["dropped0"] = p.mailbox.dropped if p is not None else 0
@@ -196,6 +212,9 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
             state["samples"] = samples
             state["missed"] = missed
             state["dropped"] = p.mailbox.dropped - state["dropped0"]
+            state["tick_ms"] = [t for t in window.tick_ms if t < stall_ms * 0.9]
+            cpu1 = cpu_by_thread()
+            state["cpu_s"] = {k: cpu1[k] - state["cpu0"][k] for k in cpu1}
             state["stats"] = ctx.run.output_stats()
             state["alarms"] = [e.message for e in ctx.log.entries() if e.level >= 40]
         except Exception as exc:
@@ -252,6 +271,8 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
         stats=st,
         state_counts=counts,
         alarms=state.get("alarms", []),
+        tick_ms=state.get("tick_ms", []),
+        cpu_s=state.get("cpu_s", {}),
     )
 
 
@@ -297,6 +318,13 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
         "tracker_ms_headless": head,
         "tracker_ratio_window_vs_headless": ratio,
         "fps_window": round(res.frames / span, 3) if span > 0 else None,
+        "gui_tick_ms": _stats(res.tick_ms),
+        # CPU time per thread over the measured span: what the air path needs from 2 cores,
+        # whatever else loads the machine (per frame and as % of one core)
+        "cpu_ms_per_frame": {k: (round(1000 * v / res.frames, 3) if res.frames and v == v
+                                 else None) for k, v in res.cpu_s.items()},
+        "cpu_percent_of_core": {k: (round(100 * v / span, 1) if span > 0 and v == v else None)
+                                for k, v in res.cpu_s.items()},
         "source_fps": source_fps,
         "frames_window": res.frames,
         "states": res.state_counts,

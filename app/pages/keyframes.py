@@ -242,6 +242,7 @@ class KeyframesPage(Page):
         ctx.project_changed.connect(lambda _p: self.reload_project())
         ctx.run.finished.connect(self._on_run_finished)
         ctx.run.failed.connect(self._on_run_failed)
+        ctx.run.started.connect(lambda _info: self._update_buttons())
         self.reload_project()
         self._update_buttons()
 
