@@ -110,7 +110,19 @@ class ImageView(pg.GraphicsLayoutWidget):
             self._shape = rgb.shape
             h, w = rgb.shape[:2]
             self.view.setRange(QRectF(0, 0, w, h), padding=0)
-            self.placeholder.setVisible(False)
+        self.placeholder.setVisible(False)
+
+    def clear_image(self, text: str = "no image") -> None:
+        """No image and no overlay (e.g. a new run before its first frame)."""
+        self._image = None
+        self.image_item.clear()
+        self.set_overlay(None)
+        self.set_info("")
+        self.placeholder.setText(text)
+        self.placeholder.setVisible(True)
+        if self._shape is not None:
+            h, w = self._shape[:2]
+            self.placeholder.setPos(w / 2, h / 2)
 
     def set_info(self, text: str) -> None:
         self.info.setText(text)

@@ -453,6 +453,7 @@ class LivePage(Page):
     # ------------------------------------------------------------- page hooks
     def run_changed(self, info: RunInfo | None) -> None:
         self.samples_missed = 0
+        self.image_view.clear_image("waiting for the first frame")
         self.pose_plots.clear_data()
         self.residual_plots.clear_data()
         self.pose_plots.redraw()
@@ -473,9 +474,12 @@ class LivePage(Page):
         if error and not self.run.stopped_by_user:
             self.error_label.setText(error)
             self.error_label.setVisible(True)
-        self.image_view.set_overlay(None, None)
         frames = status.frames if status is not None else 0
-        self.image_view.set_info(f"stopped after {frames} frames ({shown} drawn)")
+        if shown == 0:
+            self.image_view.clear_image(f"stopped after {frames} frames (none shown on this page)")
+        else:
+            self.image_view.set_overlay(None, None)
+            self.image_view.set_info(f"stopped after {frames} frames: the last frame shown")
         self._update_controls()
 
     def follows(self, info: RunInfo | None) -> bool:
@@ -510,6 +514,10 @@ class LivePage(Page):
                 polylines_uv=base.polylines_uv,
                 crosshair_uv=base.crosshair_uv,
             )
+        if overlay is not None and not result.state.is_good and overlay.points_uv is not None:
+            # a rejected attempt's points were not used for the pose: never drawn "used"
+            overlay = dataclasses.replace(
+                overlay, point_weights=np.zeros(len(overlay.points_uv), np.float32))
         self.image_view.set_overlay(decimated(overlay), frame.gt_box_xywh)
         self.image_view.set_info(self._info_text(record))
         self.status_light.set_state(result.state)
@@ -528,7 +536,9 @@ class LivePage(Page):
         ov = result.overlay
         if ov is not None and ov.points_uv is not None and len(ov.points_uv):
             n = len(ov.points_uv)
-            if ov.point_weights is not None and len(ov.point_weights):
+            if not result.state.is_good:
+                parts.append(f"{n} points, attempt rejected ({result.state.value})")
+            elif ov.point_weights is not None and len(ov.point_weights):
                 used = float(np.mean(np.asarray(ov.point_weights) >= 0.5)) * 100.0
                 parts.append(f"{n} points, {used:.0f} % used")
             else:
@@ -550,8 +560,10 @@ class LivePage(Page):
         self.readouts["residual"].setText(
             "–" if result.residual is None else f"{result.residual:.4g}"
         )
+        inl = result.inlier_fraction
         self.readouts["inliers"].setText(
-            "–" if result.inlier_fraction is None else f"{100 * result.inlier_fraction:.1f} %"
+            "–" if inl is None else f"{100 * inl:.1f} %" if result.state.is_good
+            else f"{100 * inl:.1f} % (rejected)"  # this frame's own, from the failing attempt
         )
         _, err = self.pose_plots.err.data()
         finite = err[np.isfinite(err[:, 0]), 0] if len(err) else np.empty(0)

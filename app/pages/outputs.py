@@ -105,6 +105,8 @@ class OutputsPage(Page):
     def __init__(self, ctx: Any) -> None:
         super().__init__(ctx)
         self.run = ctx.run
+        self._applying = False
+        self._shown: OutputConfig | None = None
         cfg = self.run.outputs_config
 
         # -- header: send switch, apply model -------------------------------------------
@@ -326,6 +328,7 @@ class OutputsPage(Page):
     # ------------------------------------------------------------------ state
     def load(self, cfg: OutputConfig) -> None:
         """Show ``cfg`` in every editor (discarding pending edits)."""
+        self._shown = cfg
         freed_t = next((t for t in cfg.targets if t.protocol == "freed"), None)
         otio_t = next((t for t in cfg.targets if t.protocol == "opentrackio"), None)
         bind = next((t.bind_host for t in cfg.targets if t.bind_host), None)
@@ -433,6 +436,7 @@ class OutputsPage(Page):
             self._update_pending()
             return False
         try:
+            self._applying = True
             self.run.apply_outputs(cfg)  # refuses a target that cannot be reached at all
         except StudioTrackError as exc:
             self.error_label.setText(f"Not applied: {exc}")
@@ -440,6 +444,9 @@ class OutputsPage(Page):
             self.ctx.log.error(f"outputs not applied: {exc}")
             self._update_pending()
             return False
+        finally:
+            self._applying = False
+        self._shown = cfg
         self.error_label.setText("")
         self.ctx.log.info("outputs: configuration applied")
         return True
@@ -462,6 +469,8 @@ class OutputsPage(Page):
         self.refresh_status()
 
     def _on_outputs_changed(self) -> None:
+        if not self._applying and self._shown != self.run.outputs_config:
+            self.load(self.run.outputs_config)  # changed elsewhere: show what is in force
         if self.send_box.isChecked() != self.run.outputs_enabled:
             self.send_box.blockSignals(True)
             self.send_box.setChecked(self.run.outputs_enabled)

@@ -542,8 +542,11 @@ class LivePanel(QWidget):
         self.centre.setData([], [])
         self.pred.setData([], [])
         err = self.run.last_error
+        st = self.run.status()
+        frames = st.frames if st is not None else len(self.t)
         self.readout.setText(f"⚠ {err}" if err and not self.run.stopped_by_user else
-                             f"Stopped after {len(self.t)} tracked frames.")
+                             f"Stopped after {frames} frames ({len(self.t)} with a target "
+                             "estimate).")
         self.update_buttons()
 
     def add_samples(self, samples: list[Any], missed: int) -> None:

@@ -140,3 +140,33 @@ def test_session_recorded_from_the_window(qtbot, window, live, tmp_path) -> None
     assert idx.frames_recorded == 12
     assert len(read_records(target)) == 12
     assert any("12 frames recorded" in e.message for e in window.ctx.log.entries())
+
+
+def test_a_lost_frame_shows_its_own_numbers_and_no_used_points(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
+    from engine.frames import Frame
+    from engine.loop import FrameRecord
+    from engine.results import Overlay, TrackResult, TrackState
+
+    img = np.full((48, 64, 3), 90, np.uint8)
+    pts = np.array([[5, 5], [10, 10], [20, 20]], np.float32)
+    ones = np.ones(3, np.float32)
+
+    def rec(state: TrackState, inliers: float) -> FrameRecord:
+        res = TrackResult(state, np.eye(4), inlier_fraction=inliers,
+                          overlay=Overlay(points_uv=pts, point_weights=ones),
+                          message="" if state.is_good else "residual 30 > 7")
+        return FrameRecord(1, Frame(1, 0.1, img), res, "dense", 5.0, 30.0, 0)
+
+    live.draw(rec(TrackState.TRACKING, 0.9))
+    assert live.image_view.point_counts()[-1] == 3  # used: green
+    assert live.readouts["inliers"].text() == "90.0 %"
+    live.draw(rec(TrackState.LOST, 0.999))
+    counts = live.image_view.point_counts()
+    assert counts[0] == 3
+    assert sum(counts) == 3
+    assert live.readouts["inliers"].text() == "99.9 % (rejected)"  # this frame's own number
+    assert live.status_light.text == "LOST"
+    live.draw(FrameRecord(2, Frame(2, 0.2, img), TrackResult(TrackState.LOST, np.eye(4)),
+                          "dense", 5.0, 30.0, 0))
+    assert sum(live.image_view.point_counts()) == 0  # no overlay of an earlier frame
+    assert live.readouts["inliers"].text() == "–"

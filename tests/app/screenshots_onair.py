@@ -1,0 +1,125 @@
+"""Screenshots of every page with the status header in TRACKING, LOST, output failure,
+ERROR and STOPPED, at 1280x800 and 1920x1080 (offscreen).
+
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tests/app/screenshots_onair.py OUT_DIR
+"""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/studiotrack_onair_shots")
+SIZES = ((1280, 800), (1920, 1080))
+STUDIO = "synthetic:frames=100000,width=320,height=240,presenter=0,path=rail"
+COVERED = STUDIO + ",cover_start=40,cover_frames=100000"
+
+
+def main() -> None:
+    from PySide6.QtCore import QEventLoop, QSettings, QTimer
+
+    import app.run_owner as run_owner
+    from app.context import AppContext
+    from app.main import create_application
+    from app.main_window import MainWindow
+    from engine.outputs.sender import OutputConfig, TargetSpec
+    from engine.presenter.model import auto_patches
+    from engine.sources import open_source
+
+    create_application()
+    tmp = tempfile.mkdtemp(prefix="studiotrack_shots_")
+    ctx = AppContext(settings=QSettings(f"{tmp}/s.ini", QSettings.Format.IniFormat))
+    win = MainWindow(ctx, restore_geometry=False)
+    win.show()
+    OUT.mkdir(parents=True, exist_ok=True)
+
+    def pump(seconds: float) -> None:
+        loop = QEventLoop()
+        QTimer.singleShot(round(seconds * 1000), loop.quit)
+        loop.exec()
+
+    def wait(cond, timeout: float = 90.0) -> None:  # type: ignore[no-untyped-def]
+        t = time.monotonic()
+        while not cond() and time.monotonic() - t < timeout:
+            pump(0.1)
+
+    def shoot(page: str, state: str) -> None:
+        for w, h in SIZES:
+            win.resize(w, h)
+            win.show_page(page)
+            pump(0.4)
+            win.display_tick(force_header=True)
+            pump(0.2)
+            win.grab().save(str(OUT / f"{page.lower()}_{state}_{w}x{h}.png"))
+
+    live = win.page("Live")
+    ptz = win.page("PTZ")
+    beacons = win.page("Beacons")
+    presenter = win.page("Presenter")
+
+    def start_for(page: str, covered: bool = False) -> None:
+        run = ctx.run
+        if run.is_running:
+            run.stop()
+        if page == "PTZ":
+            ptz.live.start("ptz-sim:duration=600", realtime=True)
+        elif page == "Beacons":
+            beacons.fps_spin.setValue(20.0)
+            beacons.steps_spin.setValue(100000)
+            beacons.start()
+        elif page == "Presenter":
+            spec = ("synthetic:frames=100000,width=320,height=240,seed=3,presenter=1,"
+                    "path=static" + (",cover_start=30,cover_frames=100000" if covered else ""))
+            with open_source(spec) as src:
+                first = next(iter(src.frames()))
+            presenter.source_edit.setText(spec)
+            presenter.set_reference(np.array(first.color_bgr))
+            main_box = first.gt_box_xywh
+            presenter.canvas.set_model(main_box, [(p.name, p.xywh)
+                                                  for p in auto_patches(main_box, 3)])
+            presenter.start_tracking()
+        else:
+            live.configure(source=COVERED if covered else STUDIO, tracker="dense",
+                           realtime=True)
+            live.start()
+        wait(lambda: run.frames_received > (60 if covered else 20))
+
+    pages = list(win.pages)
+    # TRACKING (each page with its own tracker where it has one)
+    for page in pages:
+        start_for(page)
+        shoot(page, "tracking")
+    # LOST (lens covered: dense on the Live run, the presenter on its page)
+    for page in pages:
+        start_for(page if page in ("Presenter",) else "Live", covered=True)
+        wait(lambda: win.header.state.state == "LOST" or
+             (win.display_tick(force_header=True) or False), timeout=30)
+        shoot(page, "lost")
+    # output failure: the route to a target goes away (a loopback-bound socket cannot send
+    # to a network address; the check at Apply is bypassed as if the route vanished after)
+    real_check = run_owner.check_targets
+    run_owner.check_targets = lambda cfg: None  # type: ignore[assignment]
+    ctx.run.apply_outputs(OutputConfig(targets=(
+        TargetSpec("freed", "192.0.2.1", 40000, bind_host="127.0.0.1"),
+        TargetSpec("opentrackio", "127.0.0.1", 55555))))
+    ctx.run.set_outputs_enabled(True)
+    for page in pages:
+        start_for(page)
+        pump(1.5)
+        shoot(page, "output_failure")
+    ctx.run.set_outputs_enabled(False)
+    run_owner.check_targets = real_check  # type: ignore[assignment]
+    # STOPPED
+    ctx.run.stop()
+    for page in pages:
+        shoot(page, "stopped")
+    win.close()
+    print(f"screenshots in {OUT}")
+
+
+if __name__ == "__main__":
+    main()
