@@ -170,3 +170,43 @@ def test_a_lost_frame_shows_its_own_numbers_and_no_used_points(qtbot, window, li
                           "dense", 5.0, 30.0, 0))
     assert sum(live.image_view.point_counts()) == 0  # no overlay of an earlier frame
     assert live.readouts["inliers"].text() == "–"
+
+
+def test_nothing_says_tracking_on_any_page_after_stop(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
+    """Stale-state check on every page: while a run tracks, pages that show the run's state
+    say so; after Stop no page (nor the header) still says TRACKING or shows a frame rate."""
+    from PySide6.QtWidgets import QLabel
+
+    from widgets.status_light import StatusLight
+
+    def texts(page) -> list[str]:  # type: ignore[no-untyped-def]
+        out = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
+        out += [s.text for s in page.findChildren(StatusLight)]
+        return out
+
+    run = window.ctx.run
+    live.configure(source=SMALL_STUDIO, tracker="ground-truth", realtime=True)
+    with qtbot.waitSignal(run.started, timeout=30_000):
+        live.start()
+    qtbot.waitUntil(lambda: run.frames_received >= 5, timeout=30_000)
+    seen_tracking = []
+    for title in window.pages:
+        window.show_page(title)
+        for _ in range(3):
+            window.display_tick(force_header=True)
+            qtbot.wait(20)
+        if any("TRACKING" in t for t in texts(window.page(title))):
+            seen_tracking.append(title)
+    assert "Live" in seen_tracking
+    assert "Operations" in seen_tracking
+    with qtbot.waitSignal(run.finished, timeout=10_000):
+        live.stop()
+    for title in window.pages:
+        window.show_page(title)
+        window.display_tick(force_header=True)
+        stale = [t for t in texts(window.page(title)) if "TRACKING" in t]
+        assert stale == [], (title, stale)
+        assert window.header.state.state == "STOPPED"
+        assert window.header.state.fps_text == "–"
+    ops = window.page("Operations")
+    assert ops.values["fps"].text() == "–"
