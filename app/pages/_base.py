@@ -77,6 +77,7 @@ class Page(QWidget):
                 self._epoch = run.epoch
                 self._cursor = 0
                 self._drawn_seq = None
+                self._next_refresh = 0.0  # read-outs follow a run change at once
                 self.run_changed(run.run_info)
             running = run.is_running
             if self.follows(run.run_info):
@@ -89,6 +90,8 @@ class Page(QWidget):
                     self._drawn_seq = rec.seq
                     self.draws += 1
                     self.draw(rec)
+            if self._was_running != running:
+                self._next_refresh = 0.0  # read-outs follow start/stop at once
             if self._was_running and not running:
                 self.run_ended(run.status())
             self._was_running = running
