@@ -115,7 +115,7 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
     if status.phase is RunPhase.FAULT:
         return HeaderState("ERROR", title, f"{status.error} — outputs hold the last pose, "
                            "flagged LOST; press Stop", fps_text="–", latency_text=lat,
-                           targets=chips, alarm=True)
+                           targets=chips, timecode=status.timecode or "", alarm=True)
     if status.state is None:
         return HeaderState("STARTING", title, "waiting for the first frame", fps, False, lat,
                            chips, alarm=failing)
@@ -127,4 +127,4 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
         state, message = "LOST", f"no frame for {age:.1f} s (engine stalled)"
     lost = state == "LOST"
     return HeaderState(state, title, message, fps, status.falling_behind, lat, chips,
-                       alarm=lost or failing)
+                       timecode=status.timecode or "", alarm=lost or failing)

@@ -234,9 +234,13 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
             begin()
             QTimer.singleShot(round(1000 * seconds / 2), stall)
             QTimer.singleShot(round(1000 * seconds), end)
-        elif time.monotonic() - marks["opened"] > 120.0:
+        elif (not ctx.run.is_running and ctx.run.last_error) or (
+                time.monotonic() - marks["opened"] > 120.0):
+            # a run that failed to open says why at once, not after the 120 s wait
             poll.stop()
-            state["error"] = f"no frame within 120 s ({ctx.run.last_error})"
+            state["error"] = (f"the run did not open: {ctx.run.last_error}"
+                              if not ctx.run.is_running
+                              else f"no frame within 120 s ({ctx.run.last_error})")
             ctx.run.stop()
             window.close()
             loop.quit()

@@ -114,6 +114,8 @@ def test_header_follows_the_run_and_clears_after_stop(qtbot, window, live) -> No
     assert h.fps_text != "–"
     assert h.latency_text.startswith("capture")
     assert [t.text for t in h.targets] == ["off"]
+    assert h.timecode  # generated at the output rate when the source has none
+    assert window.header.timecode_label.text().startswith("TC ")
     assert not h.alarm
     with qtbot.waitSignal(run.finished, timeout=10_000):
         live.stop()
@@ -122,6 +124,7 @@ def test_header_follows_the_run_and_clears_after_stop(qtbot, window, live) -> No
     assert h.state == "STOPPED"
     assert h.fps_text == "–"
     assert h.latency_text == "–"
+    assert h.timecode == ""  # nothing stale after Stop
 
 
 def test_session_recorded_from_the_window(qtbot, window, live, tmp_path) -> None:  # type: ignore[no-untyped-def]
