@@ -68,7 +68,26 @@ class AppContext(QObject):
 
     def set_project(self, project: Any | None) -> None:
         self._project = project
+        self.apply_project_setup()
         self.project_changed.emit(project)
+
+    def apply_project_setup(self) -> None:
+        """Put the project's set-up on air: its lens file on every run's source (when the
+        table is complete), its studio frame and nodal offset on the pose outputs."""
+        proj = self._project
+        lens = getattr(proj, "lens", None)
+        if lens is not None and lens.complete:
+            from engine.sources.lensed import LensedSource
+
+            self.run.source_setup = lambda src, lf=lens: LensedSource(src, lf)
+        else:
+            self.run.source_setup = None
+        if proj is not None and (proj.studio_frame is not None
+                                 or proj.nodal_offset is not None):
+            try:
+                self.run.apply_outputs(proj.output_config(self.run.outputs_config))
+            except Exception as exc:  # an unreachable target: keep the old config
+                self.log.warning(f"project set-up not applied to the outputs: {exc}")
 
     # ------------------------------------------------------------- recent files
     def recent_files(self) -> list[str]:

@@ -138,9 +138,11 @@ class RunThread(QThread):
         commands: queue.Queue[Command],
         open_source: Callable[[str], Source],
         create_tracker: Callable[[str, Any | None], Any],
+        source_setup: Callable[[Source], Source] | None = None,
     ) -> None:
         super().__init__()
         self.setObjectName(f"studiotrack-engine-{run_id}")
+        self._source_setup = source_setup
         self.run_id = run_id
         self.request = request
         self._sinks = list(sinks)
@@ -159,6 +161,8 @@ class RunThread(QThread):
         req = self.request
         try:
             source = self._open_source(req.source_spec)
+            if self._source_setup is not None:  # the project's lens file (issue 13)
+                source = self._source_setup(source)
             tracker = (req.tracker_factory() if req.tracker_factory is not None
                        else self._create_tracker(req.tracker, req.params))
             extra: list[Sink] = []
@@ -255,6 +259,9 @@ class RunOwner(QObject):
         self._view_publish: Callable[..., Any] | None = None
         self._status_cache: tuple[Any, float, RunStatus] | None = None
         self._view_sink: ViewFeedSink | None = None
+        #: the studio set-up applied to every run's source (the project's lens file: see
+        #: AppContext.apply_project_setup); None = the source as it is
+        self.source_setup: Callable[[Source], Source] | None = None
 
     # ------------------------------------------------------------------ state
     @property
@@ -359,7 +366,7 @@ class RunOwner(QObject):
         if sys.getswitchinterval() > SWITCH_INTERVAL_S:
             sys.setswitchinterval(SWITCH_INTERVAL_S)
         thread = RunThread(self._run_id, request, sinks, self._commands, self._open_source,
-                           self._create_tracker)
+                           self._create_tracker, self.source_setup)
         thread.opened.connect(self._on_opened)
         thread.open_failed.connect(self._on_open_failed)
         thread.run_done.connect(self._on_done)

@@ -66,6 +66,14 @@ def _targets(owner: Any, status: RunStatus | None) -> tuple[tuple[HeaderTarget, 
         for h in status.sinks:
             if h.name == "pose outputs":
                 continue
+            if "reconnects" in h.counters:  # a real head driver (VISCA): always a chip
+                bad_head = h.level.is_bad
+                chips.append(HeaderTarget("HEAD", "alarm" if bad_head else
+                                          "ok" if h.level is SinkLevel.OK else "waiting",
+                                          "OFFLINE" if bad_head else h.level.value,
+                                          f"{h.name}: {h.message}"))
+                bad = bad or bad_head
+                continue
             if h.level.is_bad:
                 chips.append(HeaderTarget(h.name, "alarm", h.level.value, h.message))
                 bad = True

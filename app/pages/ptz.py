@@ -7,7 +7,14 @@ Tabs:
 - Lens lines (sec. 3.3): click points along world-straight lines (New line starts another)
   or accept proposed lines (chessboard rows, LSD chains); Estimate fits the inverse radial
   model; Preview shows the undistorted image with the corrected lines overlaid.
-- Live (sec. 4-6): ``ptz-sim`` through the ``ptz`` tracker, run by the window's run owner
+- Calibration into the project: "Save head to project" (the DLT at the image's motor angles,
+  head_from_dlt), "Save distortion to project" (the line-based model), "Calibrate from the
+  simulator" (the whole chain on ptz-sim views: lines, marker DLTs at four poses, head); the
+  Live tab's "calibrated chain" mode then tracks with only that calibration.
+- Live (sec. 4-6): ``ptz-sim`` through the ``ptz`` tracker, run by the window's run owner;
+  the head is the simulated one, the loopback VISCA-over-IP camera (real bytes, finite speed,
+  position back by FreeD; its state is the header's HEAD chip) or, in the calibrated chain, a
+  head without encoder seen through a distorting lens
   (outputs and the status header follow it; the simulated head obeys the tracker's commands
   through the pipeline's head sink);
   video with the evolving snake (grey) and final contour (blue), measured centre and
@@ -27,6 +34,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt, Slot
 from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
+    QComboBox,
     QFileDialog,
     QGridLayout,
     QHBoxLayout,
@@ -119,6 +127,12 @@ class CalibPointsPanel(QWidget):
             btns.addWidget(b)
         self.solve_button.clicked.connect(self.solve)
         btns.addWidget(self.solve_button)
+        self.save_head_button = QPushButton("Save head to project")
+        self.save_head_button.setObjectName("ptz_save_head")
+        self.save_head_button.setToolTip("head geometry from this DLT (taken at motor pan/tilt "
+                                         "0/0, optical centre 4 cm ahead of the rotation "
+                                         "centre) into the studio project")
+        btns.addWidget(self.save_head_button)
         right = QWidget()
         rl = QVBoxLayout(right)
         rl.addWidget(self.table, 1)
@@ -295,6 +309,9 @@ class LinesPanel(QWidget):
             b = QPushButton(text)
             b.clicked.connect(slot)
             btns.addWidget(b)
+        self.save_button = QPushButton("Save distortion to project")
+        self.save_button.setObjectName("ptz_save_distortion")
+        btns.addWidget(self.save_button)
         lay = QVBoxLayout(self)
         lay.addWidget(self.view, 1)
         lay.addLayout(btns)
@@ -426,6 +443,18 @@ class LivePanel(QWidget):
         self.stop_button.setEnabled(False)  # enabled while the engine runs
         self.start_button.setToolTip("Run the simulated pan-tilt studio with the ptz tracker")
         self.start_button.clicked.connect(self.start)
+        self.head_combo = QComboBox()
+        self.head_combo.setObjectName("ptz_head_mode")
+        for text, key in HEAD_MODES:
+            self.head_combo.addItem(text, key)
+        self.head_combo.setToolTip("what drives the camera: the simulated stepping head, the "
+                                   "loopback VISCA-over-IP camera, or the calibrated chain "
+                                   "(the project's calibration only, head without encoder)")
+        self.calib_button = QPushButton("Calibrate from the simulator → project")
+        self.calib_button.setObjectName("ptz_calibrate_sim")
+        self.calib_button.setToolTip("run the whole chain on ptz-sim views (board lines, "
+                                     "marker DLTs at four poses) and save it in the project")
+        self.calib_button.clicked.connect(self.calibrate_from_sim)
         self.stop_button.clicked.connect(self.stop)
         self.readout = QLabel("")
         self.readout.setObjectName("ptz_readout")
@@ -490,6 +519,8 @@ class LivePanel(QWidget):
         row.addWidget(self.start_button)
         row.addWidget(self.stop_button)
         ll.addLayout(row)
+        ll.addWidget(self.head_combo)
+        ll.addWidget(self.calib_button)
         ll.addWidget(self.readout)
         ll.addWidget(self.form, 1)
         left.setMinimumWidth(300)  # combo boxes and 5-decimal spin boxes stay readable
@@ -511,10 +542,51 @@ class LivePanel(QWidget):
         if self.run.is_running:
             self.readout.setText("A run is active: stop it first.")
             return
+        from app.run_owner import RunRequest
+
+        spec = spec if isinstance(spec, str) else "ptz-sim:duration=60,period=50"
+        mode = self.head_combo.currentData()
+        factory = None
+        if mode == "visca":
+            spec += ",head=visca"
+        elif mode == "calibrated":
+            proj = self.ctx.project
+            cal = getattr(proj, "ptz", None)
+            if cal is None or cal.head is None:
+                self.readout.setText("⚠ the project has no pan-tilt calibration with a head: "
+                                     "save one (DLT tab or Calibrate from the simulator)")
+                return
+            spec += CHAIN_OPTIONS
+            params = self.form.params
+
+            def factory(c: Any = cal, p: Any = params) -> Any:
+                from engine.trackers.ptz import PtzTracker
+
+                return PtzTracker(p, calibration=c)
         self.clear_history()
-        self.run.start(spec if isinstance(spec, str) else "ptz-sim:duration=60,period=50",
-                       "ptz", self.form.params, realtime=realtime, page="PTZ")
+        self.run.start(RunRequest(spec, "ptz", self.form.params, realtime=realtime,
+                                  page="PTZ", tracker_factory=factory))
         self.update_buttons()
+
+    def calibrate_from_sim(self) -> None:
+        """The whole chain on ptz-sim views (sec. 3.1-3.3) into the project."""
+        from engine.errors import CalibrationError
+        from engine.ptz.sim import CircleScenario, PtzSimSource
+        from engine.ptz.sim_calibration import calibrate_sim
+
+        sc = CircleScenario(markers=True, distortion_k3=CHAIN_K3, encoder=False)
+        try:
+            cal, rep = calibrate_sim(PtzSimSource(sc))
+        except CalibrationError as exc:
+            self.readout.setText(f"⚠ {exc}")
+            return
+        save_ptz(self.ctx, cal, f"chain from the simulator: {rep['lines']} lines, "
+                 f"straightness {rep['straightness_before_px']:.2f} → "
+                 f"{rep['straightness_after_px']:.2f} px, {rep['dlt_views']} DLT views")
+        self.readout.setText("Calibration saved in the project (unsaved until File > Save). "
+                             "Choose 'calibrated chain' and Start.")
+        idx = self.head_combo.findData("calibrated")
+        self.head_combo.setCurrentIndex(idx)
 
     def stop(self) -> None:
         self.run.stop()
@@ -644,10 +716,34 @@ class LivePanel(QWidget):
         )
         self.readout.setText(
             self.readout.text() + f"pos err {err * 100:.1f} cm  ω̂={self.omega[-1]:.3f} rad/s  "
-            f"pan/tilt {_deg_pair(getattr(ex, 'pan_tilt_deg', None))}  "
+            f"pan/tilt {_deg_pair(getattr(ex, 'pan_tilt_deg', None))} "
+            f"({getattr(ex, 'pan_tilt_source', '–')})  "
             f"resets {getattr(ex, 'resets', '–')}  "
             f"{1000.0 / max(rec.process_ms, 1e-3):.0f} updates/s"
         )
+
+
+HEAD_MODES = (("Head: simulated (stepping motors)", "sim"),
+              ("Head: loopback VISCA camera (FreeD position)", "visca"),
+              ("Head: calibrated chain (project, no encoder)", "calibrated"))
+CHAIN_K3 = 0.12
+CHAIN_OPTIONS = f",markers=1,distortion={CHAIN_K3},encoder=0"
+
+
+def save_ptz(ctx: Any, cal: Any, what: str) -> None:
+    """Put a pan-tilt calibration into the project (a new one when none is open)."""
+    from engine.project import new_project
+
+    proj = ctx.project
+    if proj is None:
+        proj = new_project("studio")
+        proj.ptz = cal
+        proj.mark_dirty()
+        ctx.set_project(proj)
+    else:
+        proj.ptz = cal
+        proj.mark_dirty()
+    ctx.log.info(f"PTZ calibration: {what}")
 
 
 def _deg_pair(value: Any) -> str:
@@ -674,7 +770,45 @@ class PtzPage(Page):
         lay = QGridLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(self.tabs, 0, 0)
+        self.points.save_head_button.clicked.connect(self.save_head)
+        self.lines.save_button.clicked.connect(self.save_distortion)
         self._load_defaults()
+
+    def _calibration(self) -> Any:
+        from engine.ptz.calibration import PtzCalibration
+
+        proj = self.ctx.project
+        cal = getattr(proj, "ptz", None)
+        return cal if cal is not None else PtzCalibration(head=None)
+
+    def save_head(self) -> None:
+        import dataclasses
+
+        from engine.ptz.calibration import DltPose
+        from engine.ptz.kinematics import head_from_dlt
+
+        res = self.points.result
+        if res is None:
+            self.points.status.setText("⚠ Solve the DLT first")
+            return
+        head = head_from_dlt(res.decomposition, np.array([0.0, 0.0, 0.04]), 0.0, 0.0)
+        cal = dataclasses.replace(self._calibration(), head=head, dlt_poses=(
+            DltPose(0.0, 0.0, res.rmse_px, len(res.residuals_px)),))
+        save_ptz(self.ctx, cal, f"head from the DLT (RMSE {res.rmse_px:.2f} px)")
+        self.points.status.setText(self.points.status.text() + "  — saved to the project")
+
+    def save_distortion(self) -> None:
+        import dataclasses
+
+        fit = self.lines.fit
+        if fit is None or self.lines.image is None:
+            self.lines.status.setText("⚠ Estimate first")
+            return
+        h, w = self.lines.image.shape[:2]
+        cal = dataclasses.replace(self._calibration(), radial=fit.model, image_size=(w, h))
+        ks = ", ".join(f"{k:+.4f}" for k in fit.model.k)
+        save_ptz(self.ctx, cal, f"line-based distortion k ({ks})")
+        self.lines.status.setText(self.lines.status.text() + "  — saved to the project")
 
     def _load_defaults(self) -> None:
         import cv2

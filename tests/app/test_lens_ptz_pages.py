@@ -1,0 +1,103 @@
+"""Issue 13 in the window: the Lens page (samples, curves, import/export, into the project),
+the header's timecode and HEAD chip, the PTZ page driving the loopback VISCA camera and the
+calibrated chain from the project. Screenshots go to $STUDIOTRACK_SCREENSHOTS when set."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+
+def _shot(widget, name: str) -> None:  # type: ignore[no-untyped-def]
+    folder = os.environ.get("STUDIOTRACK_SCREENSHOTS")
+    if folder:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        widget.grab().save(str(Path(folder) / name))
+
+
+def test_lens_page_calibrates_samples_into_the_project(qtbot, window, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    page = window.page("Lens")
+    window.show_page("Lens")
+    assert page.table.rowCount() == 0
+    for z in (0, 32768, 65535):
+        page.zoom_spin.setValue(z)
+        page.render_views(8)
+        page.calibrate()
+    lens = window.ctx.project.lens
+    assert [s.zoom_raw for s in lens.samples] == [0, 32768, 65535]
+    assert page.table.rowCount() == 3
+    assert window.ctx.project.dirty
+    assert "3 sample(s)" in page.status.text()
+    # the curves: focal length rises with zoom
+    _x, y = page.f_curve.getData()
+    assert y[-1] > 2.5 * y[0]
+    # the project's lens goes on air: runs get a lensed source
+    assert window.ctx.run.source_setup is not None
+    page.export_file(tmp_path / "lens.json")
+    page.table.selectRow(1)
+    page.delete_selected()
+    assert [s.zoom_raw for s in window.ctx.project.lens.samples] == [0, 65535]
+    page.import_file(tmp_path / "lens.json")
+    assert len(window.ctx.project.lens.samples) == 3
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    page.import_file(bad)
+    assert str(bad) in page.status.text()
+    window.resize(1280, 800)
+    _shot(window, "lens_page_1280x800.png")
+
+
+def test_header_shows_timecode_and_head_offline(qtbot, window) -> None:  # type: ignore[no-untyped-def]
+    page = window.page("PTZ")
+    window.show_page("PTZ")
+    live = page.live
+    live.head_combo.setCurrentIndex(live.head_combo.findData("visca"))
+    live.start("ptz-sim:duration=30,period=20", realtime=True)
+    ctx = window.ctx
+    qtbot.waitUntil(lambda: ctx.run.status() is not None and ctx.run.status().frames > 20,
+                    timeout=60000)
+    header = window.header
+    qtbot.waitUntil(lambda: header.timecode_label.text().startswith("TC 00:00:"), timeout=5000)
+    qtbot.waitUntil(lambda: any(t.startswith("HEAD\nOK") for t in header.target_texts()),
+                    timeout=5000)
+    live.redraw()
+    window.resize(1280, 800)
+    _shot(window, "ptz_visca_1280x800.png")
+    window.resize(1920, 1080)
+    _shot(window, "ptz_visca_1920x1080.png")
+    pipe = ctx.run.pipeline
+    src = pipe.source
+    src.visca_camera.set_fault("silent")  # the camera stops answering
+    qtbot.waitUntil(lambda: any(t.startswith("HEAD\nOFFLINE") for t in header.target_texts()),
+                    timeout=10000)
+    n = ctx.run.status().frames
+    qtbot.waitUntil(lambda: ctx.run.status().frames > n + 10, timeout=20000)  # still tracking
+    window.resize(1280, 800)
+    _shot(window, "ptz_visca_offline_1280x800.png")
+    src.visca_camera.set_fault(None)
+    qtbot.waitUntil(lambda: any(t.startswith("HEAD\nOK") for t in header.target_texts()),
+                    timeout=10000)
+    ctx.run.stop()
+
+
+@pytest.mark.slow
+def test_ptz_calibrated_chain_from_the_project(qtbot, window) -> None:  # type: ignore[no-untyped-def]
+    page = window.page("PTZ")
+    live = page.live
+    live.head_combo.setCurrentIndex(live.head_combo.findData("calibrated"))
+    live.start("ptz-sim:duration=3", realtime=False)
+    assert "no pan-tilt calibration" in live.readout.text()  # nothing saved yet
+    live.calibrate_from_sim()
+    assert window.ctx.project.ptz.head is not None
+    live.start("ptz-sim:duration=3", realtime=False)
+    qtbot.waitUntil(lambda: not window.ctx.run.is_running, timeout=120000)
+    st = window.ctx.run.final_status
+    assert st is not None
+    assert st.frames == 90
+    from engine.trackers.ptz import PtzDetails
+
+    samples, _, _ = window.ctx.run.trace_since(0)
+    srcs = {s.details.pan_tilt_source for s in samples if isinstance(s.details, PtzDetails)}
+    assert srcs == {"markers"}
