@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from PySide6.QtCore import Qt, QTimer
+from PySide6.QtGui import QPainter, QPaintEvent, QPalette
 from PySide6.QtWidgets import QFrame, QHBoxLayout, QLabel, QSizePolicy, QVBoxLayout, QWidget
 
 STATE_COLOURS = {
@@ -64,6 +65,20 @@ def _label(name: str, text: str = "", *, mono: bool = False) -> QLabel:
     return lab
 
 
+class _ElidedLabel(QLabel):
+    """One line that ends in "…" when it does not fit (``text()`` stays the whole text)."""
+
+    def paintEvent(self, event: QPaintEvent) -> None:
+        painter = QPainter(self)
+        rect = self.contentsRect()
+        painter.setFont(self.font())
+        painter.setPen(self.palette().color(QPalette.ColorRole.WindowText))
+        text = self.fontMetrics().elidedText(self.text(), Qt.TextElideMode.ElideRight,
+                                             rect.width())
+        painter.drawText(rect, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, text)
+        painter.end()
+
+
 class StatusHeader(QFrame):
     """A strip ~60 px high across the window (see the module docstring)."""
 
@@ -78,9 +93,11 @@ class StatusHeader(QFrame):
         self.state_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.state_label.setMinimumWidth(190)
         self.state_label.setFixedHeight(46)
-        self.title_label = _label("header_title")
+        self.title_label = _ElidedLabel()
+        self.title_label.setObjectName("header_title")
         self.title_label.setStyleSheet("font-weight: bold; font-size: 12pt; color: #e6e9ee;")
-        self.message_label = _label("header_message")
+        self.message_label = _ElidedLabel()
+        self.message_label.setObjectName("header_message")
         self.message_label.setStyleSheet("color: #b9bec7;")
         for lab in (self.title_label, self.message_label):
             lab.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
@@ -90,7 +107,10 @@ class StatusHeader(QFrame):
         mid.addWidget(self.message_label)
         self.fps_label = _label("header_fps", "–", mono=True)
         self.latency_label = _label("header_latency", "–", mono=True)
-        self.timecode_label = _label("header_timecode", "TC –", mono=True)
+        self.timecode_label = _label("header_timecode", "TC –")
+        # read across the room like the state box: bright, bold, fixed-width digits
+        self.timecode_label.setStyleSheet("font-family: monospace; font-size: 13pt; "
+                                          "font-weight: bold; color: #e6e9ee;")
         nums = QVBoxLayout()
         nums.setSpacing(0)
         nums.addWidget(self.fps_label)
