@@ -80,12 +80,26 @@ class AppContext(QObject):
             from engine.sources.lensed import LensedSource
 
             self.run.source_setup = lambda src, lf=lens: LensedSource(src, lf)
+            pipe = self.run.pipeline if self.run.is_running else None
+            running = getattr(pipe, "source", None)
+            if isinstance(running, LensedSource):  # an edit reaches the run on its next frame
+                running.set_lens(lens)
         else:
             self.run.source_setup = None
-        if proj is not None and (proj.studio_frame is not None
-                                 or proj.nodal_offset is not None):
+        if proj is None:
+            return
+        from dataclasses import replace
+
+        from engine.outputs.studio_frame import CameraOffset
+
+        cfg = self.run.outputs_config
+        # the nodal offset lives only in the project; a studio frame set on the Outputs page
+        # before any project existed is kept when the project has none
+        new = replace(cfg, offset=proj.nodal_offset or CameraOffset(),
+                      studio=cfg.studio if proj.studio_frame is None else proj.studio_frame)
+        if new != cfg:
             try:
-                self.run.apply_outputs(proj.output_config(self.run.outputs_config))
+                self.run.apply_outputs(new)
             except Exception as exc:  # an unreachable target: keep the old config
                 self.log.warning(f"project set-up not applied to the outputs: {exc}")
 

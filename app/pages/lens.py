@@ -9,6 +9,9 @@
   sample (OpenCV, k1 k2; k3 and tangential fixed).
 - Curves: the interpolated focal length and k1 over the zoom axis with the samples as dots
   and the live encoder as a line.
+- Camera offset: the tracked point -> nodal point transform (metres, degrees) saved in the
+  project and applied before every output; the project's studio frame (from the Outputs
+  page's floor points or the PTZ page's DLT) is shown and can be reset.
 
 Every change goes into ``ctx.project`` (unsaved until File > Save); a lens problem (missing
 corner, unreadable file) is one line under the table and in the log.
@@ -84,6 +87,7 @@ class LensPage(Page):
         ll.addLayout(buttons)
         ll.addWidget(self.status)
         ll.addWidget(self._calibrate_box())
+        ll.addWidget(self._offset_box())
 
         self.plots = pg.GraphicsLayoutWidget()
         self.f_plot = self.plots.addPlot(0, 0, title="Focal length vs zoom")
@@ -112,8 +116,9 @@ class LensPage(Page):
         lay = QVBoxLayout(self)
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(split)
-        ctx.project_changed.connect(lambda _p: self.show_lens())
+        ctx.project_changed.connect(lambda _p: (self.show_lens(), self.show_offsets()))
         self.show_lens()
+        self.show_offsets()
 
     # ------------------------------------------------------------------ widgets
     def _calibrate_box(self) -> QGroupBox:
@@ -176,6 +181,47 @@ class LensPage(Page):
         form.addRow(self.calibrate_button)
         return box
 
+    def _offset_box(self) -> QGroupBox:
+        box = QGroupBox("Camera offset (tracked point → nodal point) and studio frame")
+        box.setToolTip("applied to the pose before every output (FreeD, OpenTrackIO): "
+                       "T_world_nodal = T_world_tracked · T_tracked_nodal, then the studio "
+                       "frame; axes of the tracked camera: x right, y down, z forward")
+        form = QFormLayout(box)
+        self.offset_spins: dict[str, QDoubleSpinBox] = {}
+        rows = ((("x_m", "x"), ("y_m", "y"), ("z_m", "z")),
+                (("pan_deg", "pan"), ("tilt_deg", "tilt"), ("roll_deg", "roll")))
+        for label, row in zip(("Offset (m)", "Rotation (°)"), rows, strict=True):
+            line = QHBoxLayout()
+            for key, text in row:
+                sp = QDoubleSpinBox()
+                sp.setObjectName(f"lens_offset_{key}")
+                metres = key.endswith("_m")
+                sp.setDecimals(4 if metres else 2)
+                limit = 10.0 if metres else 180.0
+                sp.setRange(-limit, limit)
+                sp.setSingleStep(0.005 if metres else 0.5)
+                line.addWidget(QLabel(text))
+                line.addWidget(sp, 1)
+                self.offset_spins[key] = sp
+            form.addRow(label, line)
+        btns = QHBoxLayout()
+        save = QPushButton("Save offset to project")
+        save.setObjectName("lens_offset_save")
+        save.clicked.connect(self.save_offset)
+        reset = QPushButton("Studio frame: identity")
+        reset.setObjectName("lens_studio_reset")
+        reset.setToolTip("forget the project's studio frame (set one from three floor points "
+                         "on the Outputs page, or from a DLT on the PTZ page)")
+        reset.clicked.connect(self.reset_studio_frame)
+        btns.addWidget(save)
+        btns.addWidget(reset)
+        form.addRow(btns)
+        self.offset_status = QLabel("")
+        self.offset_status.setObjectName("lens_offset_status")
+        self.offset_status.setWordWrap(True)
+        form.addRow(self.offset_status)
+        return box
+
     # ------------------------------------------------------------------ project
     def _lens(self) -> Any:
         proj = self.ctx.project
@@ -193,8 +239,76 @@ class LensPage(Page):
         else:
             proj.lens = lens
             proj.mark_dirty()
+            self.ctx.apply_project_setup()  # the next run, and the running one, use it
             self.show_lens()
         self.ctx.log.info(f"lens: {what}")
+
+    def show_offsets(self) -> None:
+        """The project's nodal offset in the spin boxes, its studio frame in words."""
+        proj = self.ctx.project
+        off = getattr(proj, "nodal_offset", None)
+        for key, sp in self.offset_spins.items():
+            sp.blockSignals(True)
+            sp.setValue(0.0 if off is None else float(getattr(off, key)))
+            sp.blockSignals(False)
+        sf = getattr(proj, "studio_frame", None)
+        if sf is None:
+            frame = "studio frame: the tracker's world (identity)"
+        else:
+            o = sf.matrix[:3, 3]
+            frame = f"studio frame: origin at ({o[0]:.3f}, {o[1]:.3f}, {o[2]:.3f}) m"
+        nodal = "no nodal offset" if off is None or off.is_identity else (
+            f"nodal offset ({off.x_m:.4f}, {off.y_m:.4f}, {off.z_m:.4f}) m, "
+            f"{off.pan_deg:.2f}/{off.tilt_deg:.2f}/{off.roll_deg:.2f}°")
+        where = "in the project" if proj is not None else "no project yet"
+        self.offset_status.setText(f"{nodal}; {frame} ({where})")
+
+    def _edit_project(self, what: str, change: Any) -> None:
+        from engine.project import new_project
+
+        proj = self.ctx.project
+        if proj is None:
+            proj = new_project("studio")
+            change(proj)
+            proj.mark_dirty()
+            self.ctx.set_project(proj)
+        else:
+            change(proj)
+            proj.mark_dirty()
+            self.ctx.apply_project_setup()
+        self.show_offsets()
+        self.ctx.log.info(what)
+
+    def save_offset(self) -> None:
+        from engine.errors import StudioTrackError
+        from engine.outputs.studio_frame import CameraOffset
+
+        try:
+            off = CameraOffset(**{k: float(sp.value()) for k, sp in self.offset_spins.items()})
+        except StudioTrackError as exc:
+            self.offset_status.setText(f"<span style='color:#ff8080'>{exc}</span>")
+            return
+
+        def change(p: Any) -> None:
+            p.nodal_offset = None if off.is_identity else off
+
+        self._edit_project(f"nodal offset saved in the project: {off.to_json_dict()}", change)
+
+    def reset_studio_frame(self) -> None:
+        proj = self.ctx.project
+        if proj is None or proj.studio_frame is None:
+            return
+
+        def change(p: Any) -> None:
+            p.studio_frame = None
+
+        self._edit_project("studio frame reset to the tracker's world", change)
+        # the outputs in force keep the old frame until told: identity now
+        from dataclasses import replace
+
+        from engine.outputs.studio_frame import StudioFrame
+
+        self.ctx.run.apply_outputs(replace(self.ctx.run.outputs_config, studio=StudioFrame()))
 
     def show_lens(self) -> None:
         from engine.lens import LensError
@@ -371,6 +485,12 @@ class LensPage(Page):
             self.status.setText(f"<span style='color:#ff8080'>{exc}</span>")
             return
         self._set_lens(LensFile.fixed(cam, note=str(path)), f"fixed lens from {path}")
+
+    def showEvent(self, event: Any) -> None:
+        # other pages change the project's set-up too (the PTZ page's DLT studio frame)
+        self.show_lens()
+        self.show_offsets()
+        super().showEvent(event)
 
     # ------------------------------------------------------------- run view
     def draw(self, record: Any) -> None:

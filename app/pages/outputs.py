@@ -435,6 +435,7 @@ class OutputsPage(Page):
             self.error_label.setToolTip(str(exc))
             self._update_pending()
             return False
+        previous = self.run.outputs_config
         try:
             self._applying = True
             self.run.apply_outputs(cfg)  # refuses a target that cannot be reached at all
@@ -447,6 +448,11 @@ class OutputsPage(Page):
         finally:
             self._applying = False
         self._shown = cfg
+        proj = self.ctx.project
+        if proj is not None and cfg.studio != previous.studio:  # the operator changed it
+            proj.studio_frame = None if cfg.studio == StudioFrame() else cfg.studio
+            proj.mark_dirty()
+            self.ctx.log.info("studio frame saved in the project (unsaved until File > Save)")
         self.error_label.setText("")
         self.ctx.log.info("outputs: configuration applied")
         return True

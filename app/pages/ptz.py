@@ -133,6 +133,12 @@ class CalibPointsPanel(QWidget):
                                          "0/0, optical centre 4 cm ahead of the rotation "
                                          "centre) into the studio project")
         btns.addWidget(self.save_head_button)
+        self.save_frame_button = QPushButton("Studio frame from DLT")
+        self.save_frame_button.setObjectName("ptz_save_studio_frame")
+        self.save_frame_button.setToolTip("the calibration points' frame (x right, y away, z "
+                                          "up, metres) becomes the studio frame of the "
+                                          "outputs, saved in the project")
+        btns.addWidget(self.save_frame_button)
         right = QWidget()
         rl = QVBoxLayout(right)
         rl.addWidget(self.table, 1)
@@ -448,8 +454,9 @@ class LivePanel(QWidget):
         for text, key in HEAD_MODES:
             self.head_combo.addItem(text, key)
         self.head_combo.setToolTip("what drives the camera: the simulated stepping head, the "
-                                   "loopback VISCA-over-IP camera, or the calibrated chain "
-                                   "(the project's calibration only, head without encoder)")
+                                   "loopback VISCA-over-IP camera (real bytes, position back "
+                                   "by FreeD), or the calibrated chain (the project's "
+                                   "calibration only, head without encoder)")
         self.calib_button = QPushButton("Calibrate from the simulator → project")
         self.calib_button.setObjectName("ptz_calibrate_sim")
         self.calib_button.setToolTip("run the whole chain on ptz-sim views (board lines, "
@@ -723,9 +730,9 @@ class LivePanel(QWidget):
         )
 
 
-HEAD_MODES = (("Head: simulated (stepping motors)", "sim"),
-              ("Head: loopback VISCA camera (FreeD position)", "visca"),
-              ("Head: calibrated chain (project, no encoder)", "calibrated"))
+HEAD_MODES = (("Head: simulated motors", "sim"),
+              ("Head: loopback VISCA camera", "visca"),
+              ("Head: calibrated chain (project)", "calibrated"))
 CHAIN_K3 = 0.12
 CHAIN_OPTIONS = f",markers=1,distortion={CHAIN_K3},encoder=0"
 
@@ -771,6 +778,7 @@ class PtzPage(Page):
         lay.setContentsMargins(4, 4, 4, 4)
         lay.addWidget(self.tabs, 0, 0)
         self.points.save_head_button.clicked.connect(self.save_head)
+        self.points.save_frame_button.clicked.connect(self.save_studio_frame)
         self.lines.save_button.clicked.connect(self.save_distortion)
         self._load_defaults()
 
@@ -796,6 +804,39 @@ class PtzPage(Page):
             DltPose(0.0, 0.0, res.rmse_px, len(res.residuals_px)),))
         save_ptz(self.ctx, cal, f"head from the DLT (RMSE {res.rmse_px:.2f} px)")
         self.points.status.setText(self.points.status.text() + "  — saved to the project")
+
+    def save_studio_frame(self) -> None:
+        """The DLT's world as the studio frame (the pan-tilt tracker's world is the DLT
+        camera's: ``T_world_cam`` identity), into the project and the outputs in force."""
+        from engine.errors import StudioTrackError
+        from engine.outputs.studio_frame import StudioFrame
+        from engine.project import new_project
+
+        res = self.points.result
+        if res is None:
+            self.points.status.setText("⚠ Solve the DLT first")
+            return
+        d = res.decomposition
+        try:
+            frame = StudioFrame.from_dlt(np.eye(4), d.R_cam_world, d.t_cam_world)
+        except StudioTrackError as exc:
+            self.points.status.setText(f"⚠ {exc}")
+            return
+        proj = self.ctx.project
+        if proj is None:
+            proj = new_project("studio")
+            proj.studio_frame = frame
+            proj.mark_dirty()
+            self.ctx.set_project(proj)
+        else:
+            proj.studio_frame = frame
+            proj.mark_dirty()
+            self.ctx.apply_project_setup()
+        o = frame.matrix[:3, 3]
+        self.ctx.log.info(f"studio frame from the DLT: origin ({o[0]:.3f}, {o[1]:.3f}, "
+                          f"{o[2]:.3f}) m in the tracker's world")
+        self.points.status.setText(self.points.status.text()
+                                   + "  — studio frame saved to the project")
 
     def save_distortion(self) -> None:
         import dataclasses

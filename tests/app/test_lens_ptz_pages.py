@@ -47,6 +47,59 @@ def test_lens_page_calibrates_samples_into_the_project(qtbot, window, tmp_path) 
     assert str(bad) in page.status.text()
     window.resize(1280, 800)
     _shot(window, "lens_page_1280x800.png")
+    window.resize(1920, 1080)
+    _shot(window, "lens_page_1920x1080.png")
+
+
+def test_offset_and_studio_frame_go_into_the_project_and_the_outputs(qtbot, window, tmp_path
+                                                                     ) -> None:  # type: ignore[no-untyped-def]
+    import numpy as np
+
+    from engine.geometry import R_from_pan_tilt_roll_deg
+    from engine.outputs.studio_frame import CameraOffset, StudioFrame
+    from engine.project import open_project
+    from engine.ptz.dlt import compose_P, project_P
+
+    ctx = window.ctx
+    lens = window.page("Lens")
+    for key, v in (("x_m", 0.1), ("z_m", 0.05), ("pan_deg", 1.5)):
+        lens.offset_spins[key].setValue(v)
+    lens.save_offset()
+    want = CameraOffset(x_m=0.1, z_m=0.05, pan_deg=1.5)
+    assert ctx.project.nodal_offset == want
+    assert ctx.run.outputs_config.offset == want  # on the outputs in force
+    assert "nodal offset (0.1000" in lens.offset_status.text()
+    # the studio frame from a DLT on the PTZ page
+    ptz = window.page("PTZ")
+    R = R_from_pan_tilt_roll_deg(0.0, -14.0, 0.0).T
+    c = np.array([0.0, 0.0, 1.5])
+    P = compose_P(np.array([[800.0, 0, 319.5], [0, 800, 239.5], [0, 0, 1]]), R, -R @ c)
+    rng = np.random.default_rng(3)
+    X = np.column_stack([rng.uniform(-1.2, 1.2, 14), rng.uniform(3, 6, 14),
+                         rng.uniform(0.2, 1.4, 14)])
+    ptz.points.image = None
+    for (u, v), xyz in zip(project_P(P, X), X, strict=True):
+        ptz.points.add_image_point(float(u), float(v), tuple(float(q) for q in xyz))
+    ptz.points.solve()
+    assert ptz.points.result is not None
+    ptz.save_studio_frame()
+    frame = ctx.project.studio_frame
+    assert frame is not None
+    # the studio origin seen from the camera (the pan-tilt tracker's world) is t = -R c
+    np.testing.assert_allclose(frame.matrix[:3, 3], -R @ c, atol=1e-3)
+    assert ctx.run.outputs_config.studio == frame
+    assert ctx.run.outputs_config.offset == want  # the offset stays
+    lens.show_offsets()
+    assert "studio frame: origin at" in lens.offset_status.text()
+    # saved and read back
+    ctx.project.save(tmp_path / "proj")
+    back = open_project(tmp_path / "proj")
+    assert back.nodal_offset == want
+    assert back.studio_frame == frame
+    # reset: identity on the outputs, none in the project
+    lens.reset_studio_frame()
+    assert ctx.project.studio_frame is None
+    assert ctx.run.outputs_config.studio == StudioFrame()
 
 
 def test_header_shows_timecode_and_head_offline(qtbot, window) -> None:  # type: ignore[no-untyped-def]
