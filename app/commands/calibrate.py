@@ -1,5 +1,7 @@
-"""``studiotrack calibrate``: chessboard (OpenCV), DLT from points (Gaspar 2009 sec. 3.1) and
-line-based lens distortion (sec. 3.3)."""
+"""``studiotrack calibrate``: chessboard (OpenCV), DLT from points (Gaspar 2009 sec. 3.1),
+line-based lens distortion (sec. 3.3), the pan-tilt chain on ptz-sim, and the studio set-up
+of a project (``studio``: studio frame from floor points / a DLT / a moved origin, and the
+tracked point -> nodal point offset; see :mod:`engine.outputs.studio_frame`)."""
 
 from __future__ import annotations
 
@@ -56,6 +58,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                     help="the ptz-sim spec whose camera is calibrated (needs markers=1)")
     ps.add_argument("--json", action="store_true", help="end with one JSON line")
     ps.set_defaults(func=_ptz_sim)
+
+    st = csub.add_parser("studio", help="the studio frame and the nodal offset of a project "
+                         "(applied to every output of runs with --project)")
+    st.add_argument("--project", type=Path, required=True, metavar="DIR")
+    st.add_argument("--floor-points", default=None, metavar="X,Y,Z;X,Y,Z;X,Y,Z",
+                    help="studio frame from three floor points in the tracker's world: origin, "
+                    "a point on +X, a point on the +Y side (m)")
+    st.add_argument("--dlt", type=Path, default=None, metavar="POINTS.csv",
+                    help="studio frame = the frame of these DLT calibration points "
+                    "(x,y,z,u,v; the tracker's world is the DLT camera's, as for ptz)")
+    st.add_argument("--origin", default=None, metavar="X,Y,Z",
+                    help="move the studio origin to this point of the tracker's world (m), "
+                    "axes kept (the 3D view's clicked point)")
+    st.add_argument("--nodal", default=None, metavar="X,Y,Z[,PAN,TILT,ROLL]",
+                    help="tracked point -> nodal point offset: metres in the tracked camera's "
+                    "axes (x right, y down, z forward), degrees")
+    st.add_argument("--reset", action="store_true",
+                    help="forget the studio frame and the nodal offset first")
+    st.add_argument("--json", action="store_true", help="end with one JSON line")
+    st.set_defaults(func=_studio)
 
 
 def _chessboard(args: argparse.Namespace) -> int:
@@ -201,10 +223,74 @@ def _ptz_sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def _floats(text: str, n: tuple[int, ...], what: str) -> list[float]:
+    import math
+
+    from engine.errors import CalibrationError
+
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) not in n or not all(math.isfinite(v) for v in vals):
+        raise CalibrationError(f"{what} {text!r}: expected {' or '.join(map(str, n))} "
+                               "comma-separated numbers")
+    return vals
+
+
+def _studio(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from engine.errors import CalibrationError
+    from engine.outputs.studio_frame import CameraOffset, StudioFrame
+
+    proj: Any = _open_project(args.project)
+    if args.reset:
+        proj.studio_frame = proj.nodal_offset = None
+    if args.floor_points is not None and args.dlt is not None:
+        raise CalibrationError("--floor-points and --dlt both set the studio frame: give one")
+    if args.floor_points is not None:
+        pts = args.floor_points.split(";")
+        if len(pts) != 3:
+            raise CalibrationError(f"--floor-points {args.floor_points!r}: expected three "
+                                   "X,Y,Z points separated by ';'")
+        p = [np.array(_floats(q, (3,), "--floor-points point")) for q in pts]
+        proj.studio_frame = StudioFrame.from_floor_points(*p)
+    if args.dlt is not None:
+        from engine.ptz.dlt import calibrate_dlt, load_points_csv
+
+        X, uv = load_points_csv(args.dlt)
+        if proj.ptz is not None and proj.ptz.radial is not None:
+            uv = proj.ptz.radial.undistort_px(uv)
+        res = calibrate_dlt(X, uv)
+        d = res.decomposition
+        proj.studio_frame = StudioFrame.from_dlt(np.eye(4), d.R_cam_world, d.t_cam_world)
+        log(f"studio frame from the DLT of {args.dlt} (rmse {res.rmse_px:.3f} px)")
+    if args.origin is not None:
+        o = np.array(_floats(args.origin, (3,), "--origin"))
+        proj.studio_frame = (proj.studio_frame or StudioFrame()).with_origin_at(o)
+    if args.nodal is not None:
+        v = _floats(args.nodal, (3, 6), "--nodal")
+        off = CameraOffset(*v)
+        proj.nodal_offset = None if off.is_identity else off
+    proj.mark_dirty()
+    proj.save()
+    frame = proj.studio_frame
+    off = proj.nodal_offset
+    log(f"{proj.folder}: studio set-up saved (revision {proj.revision}): studio frame "
+        f"{'identity' if frame is None else 'origin ' + str(np.round(frame.matrix[:3, 3], 4))}"
+        f", nodal offset {'none' if off is None else off.to_json_dict()}")
+    if args.json:
+        emit_json({"project": str(proj.folder), "revision": proj.revision,
+                   "T_world_studio": None if frame is None else frame.matrix.tolist(),
+                   "nodal_offset": None if off is None else off.to_json_dict()})
+    return 0
+
+
 COMMANDS = (
     CommandSpec(
         name="calibrate",
-        help="camera calibration: chessboard, dlt, lines, ptz-sim (--project saves them)",
+        help="camera calibration: chessboard, dlt, lines, ptz-sim, studio (--project saves them)",
         add_arguments=add_arguments,
     ),
 )

@@ -83,7 +83,22 @@ class HeadedSource(Source):
         return self.inner.input_paths()
 
     def end_notes(self) -> tuple[str, ...]:
-        return self.inner.end_notes()
+        from engine.outputs.freed_input import FreeDListener
+
+        notes = list(self.inner.end_notes())
+        d = self.driver
+        if d is not None and d.acks == 0:
+            notes.append(f"{d.name}: the camera never answered ({d.timeouts} timeouts, "
+                         f"{d.garbage} garbage replies: {d.last_error or 'no reply'}); "
+                         "tracking went on without moving it")
+        elif d is not None and (d.timeouts or d.garbage or d.reconnects):
+            notes.append(f"{d.name}: {d.timeouts} timeouts, {d.garbage} garbage replies, "
+                         f"{d.reconnects} reconnects during the run")
+        pos = self.position
+        if isinstance(pos, FreeDListener) and pos.count == 0:
+            notes.append(f"head position: no FreeD packet arrived on {pos.host}:{pos.port} "
+                         f"({pos.errors} malformed)")
+        return tuple(notes)
 
     def sinks(self) -> Sequence[Any]:
         own = tuple(self.inner.sinks())

@@ -364,5 +364,10 @@ def parse_head_spec(text: str) -> ViscaHead:
     if not (1 <= ps <= vc.PAN_SPEED_MAX and 1 <= ts <= vc.TILT_SPEED_MAX) or not cpd > 0:
         raise vc.ViscaError(f"head {text!r}: pan_speed 1..24, tilt_speed 1..20, "
                             "counts_per_deg > 0")
+    try:
+        socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+    except (OSError, UnicodeError) as exc:
+        raise vc.ViscaError(f"head {text!r}: host {host!r} does not resolve "
+                            f"({getattr(exc, 'strerror', None) or exc})") from None
     return ViscaHead(host, port, units=vc.ViscaUnits(cpd, cpd), bind_host=opts.get("bind"),
                      pan_speed=ps, tilt_speed=ts)

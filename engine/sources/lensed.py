@@ -23,7 +23,7 @@ from typing import Any
 
 from engine.camera import Intrinsics
 from engine.frames import Frame
-from engine.lens import LensEncoders, LensFile, LensState
+from engine.lens import LensEncoders, LensError, LensFile, LensState
 from engine.sources.base import Source
 
 
@@ -85,6 +85,11 @@ class LensedSource(Source):
         """The frame with the lens file's intrinsics and its :class:`LensState`."""
         state = self.lens_state(frame.payload(LensEncoders))
         cam = state.intrinsics
+        got = frame.intrinsics
+        if got is not None and (got.width, got.height) != (cam.width, cam.height):
+            raise LensError(f"lens file {self.lens.name!r} is for {cam.width}x{cam.height} "
+                            f"px images, {self.name} gives {got.width}x{got.height}: calibrate "
+                            "the lens at this camera mode (or remove it from the project)")
         if frame.intrinsics is not None and frame.intrinsics.depth_scale != cam.depth_scale:
             cam = dataclasses.replace(cam, depth_scale=frame.intrinsics.depth_scale)
             state = dataclasses.replace(state, intrinsics=cam)

@@ -141,3 +141,67 @@ def test_dlt_and_lines_into_a_project(tmp_path, capsys):
     assert main(["calibrate", "dlt", str(tmp_path / "pts.csv"), "--project", str(proj),
                  "--offset-m", "0,0"]) == 2
     assert "--offset-m" in capsys.readouterr().err
+
+
+def test_studio_frame_and_nodal_offset_into_a_project(tmp_path, capsys):
+    import numpy as np
+
+    from engine.outputs.studio_frame import CameraOffset
+    from engine.project import open_project
+    from engine.ptz.dlt import project_P, save_points_csv
+    from engine.ptz.sim import CircleScenario
+
+    proj = tmp_path / "p"
+    assert main(["calibrate", "studio", "--project", str(proj), "--floor-points",
+                 "0,0,0;2,0,0;0,3,0", "--origin", "1,2,0", "--nodal", "0.1,0,0.05,1.5,0,0",
+                 "--json"]) == 0
+    out = _last_json(capsys.readouterr().out)
+    p = open_project(proj)
+    assert p.nodal_offset == CameraOffset(x_m=0.1, z_m=0.05, pan_deg=1.5)
+    np.testing.assert_allclose(p.studio_frame.matrix[:3, 3], [1.0, 2.0, 0.0])
+    assert out["nodal_offset"]["x_m"] == 0.1
+    # bad input: one line, exit 2, nothing saved
+    rev = p.revision
+    for argv, match in ((["--nodal", "0,a,0"], "--nodal '0,a,0'"),
+                        (["--floor-points", "0,0,0;0,0,0;1,1,0"], "origin and X point"),
+                        (["--nodal", "20,0,0"], "over 10 m"),
+                        (["--floor-points", "0,0,0;1,0,0"], "three X,Y,Z points")):
+        assert main(["calibrate", "studio", "--project", str(proj), *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert match in err[-1]
+        assert err[-1].startswith("studiotrack: error:")
+    assert open_project(proj).revision == rev
+    # from a DLT: the calibration points' frame, seen from the camera (identity pose)
+    sc = CircleScenario()
+    head = sc.head()
+    rng = np.random.default_rng(2)
+    X = np.column_stack([rng.uniform(-3, 3, 12), rng.uniform(4, 9, 12), rng.uniform(0, 3, 12)])
+    save_points_csv(tmp_path / "pts.csv", X, project_P(head.P(0.0, 0.0), X))
+    assert main(["calibrate", "studio", "--project", str(proj), "--dlt",
+                 str(tmp_path / "pts.csv"), "--nodal", "0,0,0"]) == 0
+    p = open_project(proj)
+    assert p.nodal_offset is None
+    R = p.studio_frame.matrix[:3, :3]
+    # a DLT point maps into the camera as T_cam_dlt: the studio frame is that transform
+    Xc = (p.studio_frame.matrix @ np.append(X[0], 1.0))[:3]
+    uv = head.K @ Xc
+    np.testing.assert_allclose(uv[:2] / uv[2], project_P(head.P(0.0, 0.0), X[:1])[0], atol=0.05)
+    assert np.allclose(R.T @ R, np.eye(3), atol=1e-6)
+
+
+def test_a_head_that_never_answers_is_a_warning_not_a_failure(tmp_path, capsys):
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))  # a port where nothing answers VISCA
+    port = s.getsockname()[1]
+    try:
+        rc = main(["track", "synthetic:frames=3,width=64,height=48", "--tracker",
+                   "ground-truth", "--out", str(tmp_path / "t.txt"), "--json", "--head",
+                   f"visca:127.0.0.1:{port}"])
+    finally:
+        s.close()
+    assert rc == 0
+    res = _last_json(capsys.readouterr().out)
+    assert any("never answered" in w for w in res["warnings"])
+    assert main(["track", "synthetic:frames=2,width=64,height=48", "--tracker", "ground-truth",
+                 "--out", str(tmp_path / "t.txt"), "--head", "visca:nonexistent.invalid"]) == 2
+    assert "does not resolve" in capsys.readouterr().err.strip().splitlines()[-1]

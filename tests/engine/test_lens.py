@@ -135,6 +135,16 @@ def test_lensed_source_uses_frame_encoders_then_typed_values():
     with pytest.raises(LensError, match="missing corner"):
         LensedSource(Two(), lf.without_sample(0, 0))
 
+    class Small(Two):
+        def frames(self):
+            from engine.camera import Intrinsics
+
+            yield Frame(0, 0.0, np.zeros((240, 320, 3), np.uint8),
+                        intrinsics=Intrinsics(300.0, 300.0, 160.0, 120.0, width=320, height=240))
+
+    with pytest.raises(LensError, match=r"is for 640x480 px images, .* gives 320x240"):
+        list(LensedSource(Small(), lf).frames())
+
 
 def test_studio_zoom_sweep_renders_through_the_known_lens():
     from engine.sources import open_source

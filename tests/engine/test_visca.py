@@ -108,9 +108,10 @@ def test_a_camera_that_fails_is_offline_then_reconnects(loop, fault):
     t0 = time.monotonic()
     head.command(5.0, 1.0)  # never blocks, even while offline
     assert time.monotonic() - t0 < 0.01
+    if fault != "slow":  # the driver tries a fresh socket while the camera is gone
+        assert _wait(lambda: head.reconnects >= 1, 4.0)
     cam.set_fault(None)
     assert _wait(lambda: head.online, 4.0)
-    assert head.reconnects >= 1 or fault == "slow"
     assert _wait(lambda: cam._target == pytest.approx((5.0, 1.0), abs=0.1), 3.0)
 
 
