@@ -199,6 +199,21 @@ class PtzTracker:
                          nis_reset=p.nis_reset)
 
     def _head(self, frame: Frame) -> Any:
+        """The head geometry for this frame; a zoom lens: the intrinsics follow the lens
+        file at the encoders the frame read (a :class:`engine.lens.LensState` beside
+        :class:`engine.lens.LensEncoders`: FreeD/VISCA zoom, a zoom sweep). Typed or
+        default encoders keep the calibrated intrinsics."""
+        import dataclasses
+
+        from engine.lens import LensEncoders, LensState
+
+        head = self._base_head(frame)
+        st = frame.payload(LensState)
+        if st is None or frame.payload(LensEncoders) is None:
+            return head
+        return dataclasses.replace(head, K=st.intrinsics.K)
+
+    def _base_head(self, frame: Frame) -> Any:
         from engine.ptz.kinematics import PtzHead
 
         if self.calibration is not None:

@@ -178,3 +178,23 @@ def test_lens_sample_from_rendered_chessboard_views_recovers_the_lens():
     assert sample.fx_px == pytest.approx(cam.fx, rel=0.005)
     assert sample.k1 == pytest.approx(cam.dist[0], abs=0.01)
     assert sample.zoom_raw == 16384
+
+
+def test_ptz_head_intrinsics_follow_the_lens_file_at_read_encoders():
+    from engine.frames import Frame
+    from engine.ptz.head import PtzHeadReading
+    from engine.ptz.kinematics import PtzHead
+    from engine.trackers.ptz import PtzParams, PtzTracker
+
+    lf = _grid()
+    head = PtzHead(K=np.array([[700.0, 0, 320], [0, 700, 240], [0, 0, 1]]))
+    tr = PtzTracker(PtzParams())
+    img = np.zeros((480, 640, 3), np.uint8)
+    state = lf.evaluate(4000, 0)
+    read = Frame(0, 0.0, img, payloads=(PtzHeadReading(head, 0.0, 0.0), LensEncoders(4000, 0),
+                                        state))
+    np.testing.assert_allclose(tr._head(read).K, state.intrinsics.K)
+    assert tr._head(read).K[0, 0] == pytest.approx(900.0)
+    # a lens state without read encoders (typed / the file's first sample): calibrated K
+    typed = Frame(1, 0.04, img, payloads=(PtzHeadReading(head, 0.0, 0.0), state))
+    np.testing.assert_allclose(tr._head(typed).K, head.K)
