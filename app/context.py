@@ -59,6 +59,9 @@ class AppContext(QObject):
             self.run.log = self.log
         self.settings = settings if settings is not None else default_settings()
         self._project: Any | None = None
+        #: typed lens encoders (zoom, focus) for frames that carry none (the Lens page);
+        #: None: the lens file's first sample
+        self.lens_typed: tuple[int, int] | None = None
 
     # ------------------------------------------------------------- project slot
     @property
@@ -79,11 +82,13 @@ class AppContext(QObject):
         if lens is not None and lens.complete:
             from engine.sources.lensed import LensedSource
 
-            self.run.source_setup = lambda src, lf=lens: LensedSource(src, lf)
+            typed = self.lens_typed
+            self.run.source_setup = lambda src, lf=lens, t=typed: LensedSource(src, lf, t)
             pipe = self.run.pipeline if self.run.is_running else None
             running = getattr(pipe, "source", None)
             if isinstance(running, LensedSource):  # an edit reaches the run on its next frame
                 running.set_lens(lens)
+                running.set_encoders(*(typed if typed is not None else (None,)))
         else:
             self.run.source_setup = None
         if proj is None:

@@ -4,9 +4,10 @@
   Delete removes the selected rows; Import/Export read and write lens JSON; "Fixed lens"
   makes a one-sample file from a ``camera.json``.
 - Calibrate a sample: the encoder values it belongs to (typed, or "Use live encoders" from
-  the running source's frames), chessboard views (image files, or - for the built-in studio's
-  zoom lens - rendered views at those encoders), pattern and square size; Calibrate adds the
-  sample (OpenCV, k1 k2; k3 and tangential fixed).
+  the running source's frames; "on air" uses the typed values for frames without
+  encoders), chessboard views (image files, or - for the built-in studio's zoom lens -
+  rendered views at those encoders), pattern and square size; Calibrate adds the sample
+  (OpenCV, k1 k2; k3 and tangential fixed).
 - Curves: the interpolated focal length and k1 over the zoom axis with the samples as dots
   and the live encoder as a line.
 - Camera offset: the tracked point -> nodal point transform (metres, degrees) saved in the
@@ -27,6 +28,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
     QAbstractItemView,
+    QCheckBox,
     QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
@@ -140,6 +142,15 @@ class LensPage(Page):
         use_live.setToolTip("the zoom/focus encoders of the running source's latest frame")
         use_live.clicked.connect(self.use_live_encoders)
         enc.addWidget(use_live)
+        self.typed_check = QCheckBox("on air")
+        self.typed_check.setObjectName("lens_typed_on_air")
+        self.typed_check.setToolTip("use these typed encoders for sources whose frames carry "
+                                    "none (a camera without lens encoder); off: the lens "
+                                    "file's first sample")
+        self.typed_check.toggled.connect(self.apply_typed)
+        self.zoom_spin.valueChanged.connect(lambda _v: self._typed_changed())
+        self.focus_spin.valueChanged.connect(lambda _v: self._typed_changed())
+        enc.addWidget(self.typed_check)
         form.addRow("Encoders", enc)
         self.pattern_edit = QLineEdit("9x6")
         self.square_spin = QDoubleSpinBox()
@@ -361,6 +372,16 @@ class LensPage(Page):
             return
         self.zoom_spin.setValue(self.live_encoders[0])
         self.focus_spin.setValue(self.live_encoders[1])
+
+    def _typed_changed(self) -> None:
+        if self.typed_check.isChecked():
+            self.apply_typed(True)
+
+    def apply_typed(self, on: bool) -> None:
+        """Typed encoders on air (frames without their own) or back to the first sample."""
+        self.ctx.lens_typed = ((self.zoom_spin.value(), self.focus_spin.value()) if on
+                               else None)
+        self.ctx.apply_project_setup()
 
     def clear_views(self) -> None:
         self.views = []

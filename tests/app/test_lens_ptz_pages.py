@@ -41,6 +41,19 @@ def test_lens_page_calibrates_samples_into_the_project(qtbot, window, tmp_path) 
     assert [s.zoom_raw for s in window.ctx.project.lens.samples] == [0, 65535]
     page.import_file(tmp_path / "lens.json")
     assert len(window.ctx.project.lens.samples) == 3
+    # typed encoders on air (a source without lens encoders)
+    from types import SimpleNamespace
+
+    bare = SimpleNamespace(name="bare", nominal_fps=25.0, live=False)
+    assert window.ctx.run.source_setup(bare).intrinsics.fx == pytest.approx(
+        lens.samples[0].fx_px)
+    page.zoom_spin.setValue(32768)
+    page.typed_check.setChecked(True)
+    assert window.ctx.lens_typed == (32768, 0)
+    assert window.ctx.run.source_setup(bare).intrinsics.fx == pytest.approx(
+        lens.samples[1].fx_px)
+    page.typed_check.setChecked(False)
+    assert window.ctx.lens_typed is None
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     page.import_file(bad)
