@@ -22,6 +22,10 @@ it skipped (from the SDK's frame numbers, so drops in the SDK or on USB count to
 frame arrives for ``timeout_s`` (cable pulled, camera reset), the source yields frames
 without a picture and ``link_lost_reason = "camera disconnected"`` (the loop reports LOST)
 and tries to reopen the camera every ``reconnect_s`` until it is back.
+
+Closing a recording first brings the SDK's reader thread to rest (the recording is run to
+its end, the pipeline stopped, the thread waited for): librealsense 2.59 crashes when a
+playback device is freed under a running reader thread (see :func:`_release_sdk`).
 """
 
 from __future__ import annotations
@@ -29,7 +33,9 @@ from __future__ import annotations
 import contextlib
 import functools
 import math
+import threading
 import time
+import weakref
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -286,15 +292,27 @@ class SdkStream:
         else:
             cfg.enable_stream(rs.stream.color, w, h, rs.format.any, fps)
         self._pipe = rs.pipeline(ctx)
+        self._playback: Any = None
         try:
+            if opts.file is not None:
+                # Resolved before start(), the pipeline starts this very device (the config
+                # keeps it), so a recording plays at the asked rate from its first frame on;
+                # set after start(), the first frames play in real time and the SDK drops
+                # those the consumer has not taken yet (12 of 100 starts under load).
+                resolved = cfg.resolve(rs.pipeline_wrapper(self._pipe))
+                self._playback = resolved.get_device().as_playback()
+                self._playback.set_real_time(bool(opts.realtime))
             profile = self._pipe.start(cfg)
         except RuntimeError as exc:
             raise SourceError(f"{where}: the SDK cannot start {w}x{h}@{fps} ({exc})") from None
+        self._closed = False
+        self._finalizer = weakref.finalize(self, _release_sdk, rs, self._pipe, self._playback)
         try:
-            dev = profile.get_device()
-            self._playback = dev.as_playback() if opts.file is not None else None
             if self._playback is not None:
-                self._playback.set_real_time(bool(opts.realtime))
+                # the sensors' start has run on the reader thread: from here on a stopped
+                # status means the recording ended, not that it has not begun
+                _reader_barrier(self._playback)
+            dev = profile.get_device()
             depth_sensor = dev.first_depth_sensor()
             # the SDK keeps Depth Units as float32 (0.001 -> 0.0010000000475): round it back
             self._depth_units_m = float(f"{float(depth_sensor.get_depth_scale()):.7g}")
@@ -320,8 +338,7 @@ class SdkStream:
                 self._align = rs.align(rs.stream.color)
             self.aligned_by_sdk = self._align is not None
         except BaseException:
-            with contextlib.suppress(RuntimeError):
-                self._pipe.stop()
+            self.close()
             raise
 
     @staticmethod
@@ -409,6 +426,8 @@ class SdkStream:
     def read(self, timeout_s: float) -> RawFrame | None:
         import cv2
 
+        if self._closed:
+            raise EndOfRecording  # a grabber thread still reading after close()
         try:
             ok, fs = self._pipe.try_wait_for_frames(max(1, round(timeout_s * 1000)))
         except RuntimeError as exc:
@@ -432,8 +451,78 @@ class SdkStream:
                         frame_number=int(c.get_frame_number()))
 
     def close(self) -> None:
+        """Stop streaming and let the SDK objects go (safely: see :func:`_release_sdk`)."""
+        self._closed = True
+        self._finalizer()
+
+
+#: longest a close waits for a recording's reader thread to come to rest
+CLOSE_TIMEOUT_S = 10.0
+#: SDK objects whose reader thread did not come to rest in time: kept, never freed
+_NEVER_FREED: list[tuple[Any, Any]] = []
+
+
+def _reader_barrier(playback: Any) -> None:
+    """Return once the playback's reader thread has run every step queued before this call.
+
+    ``resume()`` of a playback that is not paused queues a step that does nothing on the
+    reader thread and waits for it (librealsense ``playback_device::resume``: invoke, flush).
+    StudioTrack never pauses a playback, so this is a pure barrier.
+    """
+    playback.resume()
+
+
+def _seek_to_end(playback: Any) -> None:
+    with contextlib.suppress(RuntimeError):
+        playback.seek(playback.get_duration())
+
+
+def _end_playback(rs: Any, pipe: Any, playback: Any) -> bool:
+    """Bring a recording to its end so the SDK stops it itself; False if it did not in time.
+
+    At the end of the file the reader thread flushes the frames it handed out and stops the
+    sensors itself: the one stop in which no SDK thread has a frame in flight. Seeking there
+    waits for the reader thread, which may be blocked handing a frame to the pipeline's full
+    queue (a recording played every frame waits for its consumer), so the seek runs on a
+    helper thread while this one drains the queue.
+    """
+    stopped = rs.playback_status.stopped
+    if playback.current_status() == stopped:
+        return True
+    seeker = threading.Thread(target=_seek_to_end, args=(playback,), name="realsense-close",
+                              daemon=True)
+    seeker.start()
+    deadline = time.monotonic() + CLOSE_TIMEOUT_S
+    while seeker.is_alive() or playback.current_status() != stopped:
+        if time.monotonic() > deadline:
+            return False
         with contextlib.suppress(RuntimeError):
-            self._pipe.stop()
+            pipe.poll_for_frames()
+        time.sleep(0.001)
+    return True
+
+
+def _release_sdk(rs: Any, pipe: Any, playback: Any) -> None:
+    """Stop a pipeline so that no SDK thread still runs when its objects are freed.
+
+    librealsense 2.59 frees a playback device while its reader thread may still run a queued
+    step: ``dispatcher::stop`` waits for the step being run but not for one the thread has
+    just taken off the queue, and the destructor then frees the sensors that step uses
+    (heap corruption, SIGSEGV or SIGABRT; a few closes in a thousand on a loaded machine). The
+    reader thread has steps queued while a recording plays and right after the pipeline
+    stops (the sensors' stop and close queue theirs), so a recording is stopped at its end
+    (:func:`_end_playback`), the pipeline stopped, and the reader thread waited for
+    (:func:`_reader_barrier`) before anything is freed. If the recording cannot be brought
+    to rest, its objects are kept for the life of the process rather than freed under a
+    running thread. A live camera has no reader thread: its pipeline is just stopped.
+    """
+    if playback is not None and not _end_playback(rs, pipe, playback):
+        _NEVER_FREED.append((pipe, playback))
+        return
+    with contextlib.suppress(RuntimeError):
+        pipe.stop()
+    if playback is not None:
+        _reader_barrier(playback)
 
 
 # -- the source -----------------------------------------------------------------------------
@@ -538,8 +627,10 @@ class RealSenseSource(Source):
             waited = 0.0
             if index == 0 and first_seq is not None and raw.frame_number != first_seq \
                     and restarts < MAX_START_RETRIES:
-                # The SDK's pipeline now and then drops the first frame of a playback while
-                # its syncer starts (1 in ~10 starts on a loaded machine); start again.
+                # The SDK's pipeline now and then drops the first frame(s) of a playback
+                # while it starts (4 in 100 starts on a loaded machine, with the playback
+                # set to every-frame before the start; 12 in 100 when set after it) and
+                # never a later one; start again (all 5 tries failing: ~1e-7).
                 restarts += 1
                 self.playback_restarts += 1
                 self._reopen_or_raise()
@@ -565,6 +656,13 @@ class RealSenseSource(Source):
         last_t: float | None = None
         t_offset = 0.0
         last_fn: int | None = None
+        if self.opts.file is not None:
+            # a recording played in real time plays from its first frame: the frames it
+            # played before the first one was taken count as skipped too
+            from engine.sources.realsense_bag import first_color_seq
+
+            first_seq = first_color_seq(self.opts.file)
+            last_fn = None if first_seq is None else first_seq - 1
         period = 1.0 / self.nominal_fps
         while True:
             stream = self._stream

@@ -3,6 +3,7 @@ projection (``rs2_project_point_to_pixel`` / ``rs2_deproject_pixel_to_point``)."
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 
@@ -11,32 +12,66 @@ import pytest
 
 from engine.camera import backproject, project
 from engine.errors import SourceError
-from engine.sources.grabber import NewestGrabber
+from engine.sources.grabber import RATE_WINDOW_S, NewestGrabber
 from engine.sources.rs_intrinsics import intrinsics_from_sdk, model_key
 
 
+class Feed:
+    """A device for the grabber that delivers exactly the items the test puts in.
+
+    ``grab()`` blocks briefly for the next item (returning None, "nothing this time", when
+    there is none); :meth:`wait_stored` returns once the grabber has stored the ``n``-th
+    item, i.e. called ``grab()`` again after it returned that item.
+    """
+
+    def __init__(self) -> None:
+        self.items: queue.Queue[int] = queue.Queue()
+        self._cond = threading.Condition()
+        self._returned = 0
+        self._asked_after = 0  # items returned before the latest call of grab()
+
+    def grab(self) -> int | None:
+        with self._cond:
+            self._asked_after = self._returned
+            self._cond.notify_all()
+        try:
+            item = self.items.get(timeout=0.01)
+        except queue.Empty:
+            return None
+        with self._cond:
+            self._returned += 1
+        return item
+
+    def put(self, *items: int) -> None:
+        for item in items:
+            self.items.put(item)
+
+    def wait_stored(self, n: int) -> None:
+        with self._cond:
+            assert self._cond.wait_for(lambda: self._asked_after >= n, timeout=10.0)
+
+
 def test_grabber_hands_out_the_newest_and_counts_the_rest() -> None:
-    counter = iter(range(1_000_000))
-    gate = threading.Event()
-
-    def grab() -> int:
-        gate.wait(1.0)
-        time.sleep(0.001)
-        return next(counter)
-
-    g: NewestGrabber[int] = NewestGrabber(grab)
+    feed = Feed()
+    g: NewestGrabber[int] = NewestGrabber(feed.grab)
     g.start()
-    gate.set()
+    feed.put(100)
+    feed.wait_stored(1)
     first = g.take(1.0)
     assert first is not None
-    time.sleep(0.05)
+    assert (first.item, first.seq, first.skipped) == (100, 1, 0)
+    feed.put(*range(101, 108))  # seven arrive while the consumer is busy
+    feed.wait_stored(8)
     second = g.take(1.0)
-    g.stop()
     assert second is not None
-    assert second.item > first.item
-    assert second.skipped == second.seq - first.seq - 1 > 5
-    assert g.total_skipped == first.skipped + second.skipped
-    assert g.skipped_per_s() >= second.skipped
+    assert (second.item, second.seq, second.skipped) == (107, 8, 6)  # the newest; 6 dropped
+    assert g.take(0.05) is None  # nothing newer: no frame is handed out twice
+    assert g.total_skipped == 6
+    # "skipping N frames/s" over the last RATE_WINDOW_S seconds, at the consumer's clock
+    assert g.skipped_per_s(second.arrival_s) == pytest.approx(6 / RATE_WINDOW_S)
+    assert g.skipped_per_s(second.arrival_s + RATE_WINDOW_S + 0.01) == 0.0
+    assert first.arrival_s <= second.arrival_s <= time.monotonic()
+    g.stop()
     assert not g.running
 
 

@@ -9,6 +9,7 @@ same stream interface, and on the SDK's own real-time playback.
 from __future__ import annotations
 
 import itertools
+import threading
 import time
 from pathlib import Path
 
@@ -198,61 +199,115 @@ def test_realtime_playback_skips_what_a_slow_tracker_cannot_take(bag: Path) -> N
     skipped = sum(f.skipped_before for f in frames)
     assert taken < N
     assert skipped > 0
-    # each recorded frame is taken or counted as skipped (from the SDK's frame numbers) at
-    # most once; only the last few, still arriving when the recording ended, are neither
-    assert N - 4 <= taken + skipped <= N
+    # each recorded frame is taken or counted as skipped (from the SDK's frame numbers, the
+    # recording's first one included) exactly once
+    assert taken + skipped == N
 
 
 # -- a fake device: faster than the tracker, unplugged mid-run, plugged back ----------------
+class Bench:
+    """The camera side of the fake-device tests: the test decides when each frame exists.
+
+    Every opened :class:`FakeDevice` delivers the frames released to it (one at open, then
+    :meth:`release`), one per ``read()``. :meth:`wait_stored` returns once the source's
+    grabber has stored the ``n``-th frame delivered so far (it reads again only after
+    storing one), so the tests count frames, not milliseconds. The device fails as told:
+    the first one stops delivering after ``lost_after`` frames (silently, or with a USB
+    error), and the first ``fail_reopens`` attempts to open it again find no camera.
+    """
+
+    def __init__(self, *, lost_after: int | None = None, raise_on_loss: bool = False,
+                 fail_reopens: int = 0) -> None:
+        self.cond = threading.Condition()
+        self.devices: list[FakeDevice] = []
+        self.delivered = 0  # frames delivered by all devices
+        self.asked_after = 0  # frames delivered before the latest read()
+        self.lost_after = lost_after
+        self.raise_on_loss = raise_on_loss
+        self.fail_reopens = fail_reopens
+        self.reopen_attempts = 0
+
+    def opener(self, opts: RealSenseOptions) -> FakeDevice:
+        with self.cond:
+            if self.devices:
+                self.reopen_attempts += 1
+                if self.reopen_attempts <= self.fail_reopens:
+                    raise SourceError("realsense: no RealSense camera connected")
+            dev = FakeDevice(self)
+            self.devices.append(dev)
+            return dev
+
+    def release(self, n: int = 1) -> None:
+        with self.cond:
+            self.devices[-1].credit += n
+            self.cond.notify_all()
+
+    def wait_stored(self, n: int) -> None:
+        with self.cond:
+            assert self.cond.wait_for(lambda: self.asked_after >= n, timeout=10.0)
+
+
+def frame_no(frame: Frame) -> int:
+    """The global number a :class:`FakeDevice` wrote into the frame's first pixel."""
+    assert frame.color_bgr is not None
+    return int(frame.color_bgr[0, 0, 0]) + 256 * int(frame.color_bgr[0, 0, 1])
+
+
 class FakeDevice:
     """Stands in for the SDK pipeline (same ``RgbdStream`` interface)."""
 
-    def __init__(self, script: dict[str, object]) -> None:
+    fps = 200.0
+    name = "fake RealSense"
+
+    def __init__(self, bench: Bench) -> None:
         from engine.camera import Intrinsics
 
-        self.script = script
+        self.bench = bench
         self.intrinsics = Intrinsics(100.0, 100.0, 15.5, 11.5, 32, 24, depth_scale=1000.0)
-        self.fps = float(script.get("fps", 30.0))  # type: ignore[arg-type]
-        self.name = "fake RealSense"
-        self.n = 0
-        script["opened"] = int(script.get("opened", 0)) + 1  # type: ignore[call-overload]
+        self.credit = 1  # a camera has a frame at once
+        self.n = 0  # frames this device delivered (its clock restarts at every open)
 
     def read(self, timeout_s: float) -> RawFrame | None:
-        lost_after = self.script.get("lost_after")
-        if lost_after is not None and self.script["opened"] == 1 and self.n >= lost_after:
-            if self.script.get("raise"):
+        b = self.bench
+        with b.cond:
+            b.asked_after = b.delivered
+            b.cond.notify_all()
+            lost = b.devices[0] is self and b.lost_after is not None and self.n >= b.lost_after
+            if not lost:
+                if not b.cond.wait_for(lambda: self.credit > 0, timeout=timeout_s):
+                    return None
+                self.credit -= 1
+                fn = b.delivered
+                b.delivered += 1
+                self.n += 1
+        if lost:
+            if b.raise_on_loss:
                 raise DeviceLost("USB error")
             time.sleep(timeout_s)
             return None
-        time.sleep(1.0 / self.fps)
-        self.n += 1
-        fn = int(self.script.get("fn", 0))  # type: ignore[call-overload]
-        self.script["fn"] = fn + 1
-        return RawFrame(color_bgr=np.full((24, 32, 3), fn % 255, np.uint8),
-                        depth_m=np.ones((24, 32), np.float32), timestamp_s=fn / self.fps,
-                        frame_number=None)
+        color = np.zeros((24, 32, 3), np.uint8)
+        color[0, 0, :2] = (fn % 256, fn // 256)
+        return RawFrame(color_bgr=color, depth_m=np.ones((24, 32), np.float32),
+                        timestamp_s=(self.n - 1) / self.fps, frame_number=None)
 
     def close(self) -> None:
         pass
 
 
-def _fake_source(script: dict[str, object], *, fail_reopens: int = 0) -> RealSenseSource:
-    attempts = [0]
-
-    def opener(opts: RealSenseOptions) -> FakeDevice:
-        if "opened" in script:
-            attempts[0] += 1
-            if attempts[0] <= fail_reopens:
-                raise SourceError("realsense: no RealSense camera connected")
-        return FakeDevice(script)
-
-    opts = RealSenseOptions(timeout_s=0.2, reconnect_s=0.05)
-    return RealSenseSource(opts, opener=opener)
+def _fake_source(bench: Bench) -> RealSenseSource:
+    # timeouts far above any scheduling delay: only the scripted loss is a lost camera
+    opts = RealSenseOptions(timeout_s=1.0, reconnect_s=0.05)
+    return RealSenseSource(opts, opener=bench.opener)
 
 
 def test_source_faster_than_the_tracker_gives_the_newest_frame_and_counts_skips() -> None:
-    from engine.loop import run_tracking
+    from engine.pipeline import Pipeline
     from engine.trackers.base import TrackResult, TrackState
+
+    period = 0.05  # a 20 Hz tracker (on the pipeline's clock, advanced by the tracker)
+    per_track = 10  # frames the camera delivers while the tracker works on one
+    now = [0.0]
+    lags: list[int] = []
 
     class SlowTracker:
         name = "slow"
@@ -266,23 +321,26 @@ def test_source_faster_than_the_tracker_gives_the_newest_frame_and_counts_skips(
 
         def track(self, frame: Frame) -> TrackResult:
             # how many frames the camera had delivered beyond the one handed to the tracker
-            lags.append(int(script["fn"]) - 1 - int(frame.color_bgr[0, 0, 0]))  # type: ignore[call-overload, index]
-            time.sleep(0.05)  # 20 Hz tracker on a 200 Hz camera
+            lags.append(bench.delivered - 1 - frame_no(frame))
+            # capture time = when the grabber got the frame, before the tracker took it
+            assert frame.capture_mono_s <= time.monotonic()
+            target = bench.delivered + per_track
+            bench.release(per_track)
+            bench.wait_stored(target)
+            now[0] += period
             return TrackResult(state=TrackState.TRACKING, T_world_cam=np.eye(4))
 
-    lags: list[int] = []
-    script: dict[str, object] = {"fps": 200.0}
-    src = _fake_source(script)
-    records = list(run_tracking(src, SlowTracker(), max_frames=15))
+    bench = Bench()
+    src = _fake_source(bench)
+    pipe = Pipeline(src, SlowTracker(), max_frames=30, clock=lambda: now[0])
+    records = list(pipe.records())
     src.close()
     skipped = [r.frame.skipped_before for r in records]
-    assert sum(skipped[1:]) >= 3 * 14  # ~9 of every 10 camera frames skipped
-    assert records[-1].skipped_per_s > 50  # "skipping N frames/s"
-    # the frame taken is the newest (no stale backlog): at most a frame or two behind
-    assert max(lags) <= 2, lags
+    assert skipped == [0] + [per_track - 1] * 29  # 9 of every 10 camera frames skipped
+    assert lags == [0] * 30  # the frame taken is the newest: no stale backlog
     assert src.total_skipped == sum(skipped)
-    # capture time = when the grabber got the frame, before the tracker took it
-    assert all(r.frame.capture_mono_s <= r.done_mono_s for r in records)
+    # "skipping N frames/s": 9 skipped per tracked frame at 20 Hz
+    assert records[-1].skipped_per_s == pytest.approx((per_track - 1) / period, rel=0.1)
 
 
 @pytest.mark.parametrize("raise_error", [False, True])
@@ -290,8 +348,10 @@ def test_unplugged_mid_run_reports_lost_then_reconnects(raise_error: bool) -> No
     from engine.loop import run_tracking
     from engine.trackers.base import TrackResult, TrackState
 
-    class EchoTracker:
-        name = "echo"
+    class LockstepTracker:
+        """The camera's next frame comes once this one is tracked: none is ever skipped."""
+
+        name = "lockstep"
         params = None
 
         def set_params(self, params: object) -> None:
@@ -301,22 +361,27 @@ def test_unplugged_mid_run_reports_lost_then_reconnects(raise_error: bool) -> No
             pass
 
         def track(self, frame: object) -> TrackResult:
+            bench.release()
             return TrackResult(state=TrackState.TRACKING, T_world_cam=np.eye(4))
 
-    script: dict[str, object] = {"fps": 100.0, "lost_after": 5, "raise": raise_error}
-    src = _fake_source(script, fail_reopens=2)
-    records = list(run_tracking(src, EchoTracker(), max_frames=14))
+    bench = Bench(lost_after=5, raise_on_loss=raise_error, fail_reopens=2)
+    src = _fake_source(bench)
+    records = list(run_tracking(src, LockstepTracker(), max_frames=14))
     src.close()
     states = [r.result.state for r in records]
     assert states[:5] == [TrackState.TRACKING] * 5
     lost = [r for r in records if r.result.state is TrackState.LOST]
     assert len(lost) == 3  # two failed reopen attempts, then the camera is back
+    assert bench.reopen_attempts == 3
     assert all(r.result.message == DISCONNECTED for r in lost)
     assert all(r.frame.color_bgr is None and r.frame.link_lost_reason == DISCONNECTED
                for r in lost)
     np.testing.assert_array_equal(lost[0].result.T_world_cam, np.eye(4))  # pose held
     assert states[8:] == [TrackState.TRACKING] * 6
+    assert [frame_no(r.frame) for r in records if r.frame.color_bgr is not None] == list(
+        range(11))
     assert src.reconnects == 1
+    assert src.total_skipped == 0
     ts = [r.frame.timestamp_s for r in records]
     assert all(b > a for a, b in itertools.pairwise(ts))  # increasing across the gap
 
