@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import itertools
 import socket
 import threading
 import time
@@ -183,31 +184,72 @@ class _Explodes:
         return TrackResult(TrackState.TRACKING, frame.gt_T_world_cam)
 
 
-def test_engine_exception_mid_run_keeps_sending_flagged_lost_until_stop() -> None:
+def test_engine_exception_mid_run_keeps_sending_flagged_lost_until_stop(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The sender's own slot times, and the slots it reported missed at each one, are what
+    # its pacing is judged on: a loaded machine may wake it late (that is reported, never
+    # hidden), and the receiving thread's own delays are not the sender's.
+    fires: list[tuple[float, int]] = []  # (send time, slots skipped then), one per packet
+    real_fired = OutputClock.fired
+
+    def recording_fired(self: OutputClock, now: float) -> None:
+        before = self.missed
+        real_fired(self, now)
+        fires.append((now, self.missed - before))
+
+    monkeypatch.setattr(OutputClock, "fired", recording_fired)
     rx = _rx()
     cfg = OutputConfig(targets=(TargetSpec("opentrackio", "127.0.0.1", rx.getsockname()[1]),))
     sink = PoseOutputSink(cfg)  # real-time run: clocked at the source's 50 Hz
+    P = 1 / 50
     pipe = Pipeline(_Src(), _Explodes(), [sink], realtime=True, hold_on_fault=True)
     stop = threading.Event()
     th = threading.Thread(target=pipe.run, args=(stop.is_set,))
     th.start()
+    got: list[tuple[float, bytes]] = []
     try:
-        got = _drain(rx, time.monotonic() + 1.0)
+        deadline = time.monotonic() + 10.0
+        while pipe.phase is not RunPhase.FAULT and time.monotonic() < deadline:
+            got += _drain(rx, time.monotonic() + 0.05)
         assert pipe.phase is RunPhase.FAULT
+        got += _drain(rx, time.monotonic() + 0.8)  # 40 slots after the fault
         health = sink.health()
+        stopped_at = time.monotonic()
     finally:
         stop.set()
         th.join(5)
         rx.close()
-    samples = [(t, ot.decode_datagrams([d])[0]) for t, d in got]
-    lost = [(t, s) for t, s in samples if s["tracker"]["status"] == "LOST"]
-    tracking = [s for _, s in samples if s["tracker"]["status"] == "TRACKING"]
-    assert len(tracking) >= 8
-    assert len(lost) >= 35  # ~0.8 s at 50 Hz after the fault
-    gaps = np.diff([t for t, _ in lost])
-    assert gaps.max() < 0.25  # steadily on (gap figures are the onair bench's, not a test's)
-    # the last good pose is held (x of frame 9), not extrapolated
-    assert lost[-1][1]["transforms"][0]["translation"] == tracking[-1]["transforms"][0][
-        "translation"]
+    samples = sorted((ot.decode_datagrams([d])[0] for _, d in got),
+                     key=lambda s: s["timing"]["sequenceNumber"])
+    seqs = [s["timing"]["sequenceNumber"] for s in samples]
+    status = [s["tracker"]["status"] for s in samples]
+    assert seqs == list(range(len(samples)))  # every slot sent reached us, none twice
+    n_tracking = status.index("LOST")
+    assert n_tracking >= 1
+    assert status == ["TRACKING"] * n_tracking + ["LOST"] * (len(status) - n_tracking)
+    # TRACKING slots carry tracked frames (x = 1 mm per frame), in order, none made up;
+    # every LOST slot holds the last good pose, frame 9's (held, not extrapolated). Frame 9
+    # itself may never have gone out TRACKING: on a busy machine the fault can come before
+    # the sender's next slot.
+    x_mm = [s["transforms"][0]["translation"]["x"] * 1000.0 for s in samples]
+    assert x_mm[:n_tracking] == pytest.approx(np.round(x_mm[:n_tracking]), abs=1e-6)
+    assert np.all(np.diff(x_mm[:n_tracking]) >= 0)
+    assert x_mm[n_tracking - 1] <= 9.0 + 1e-6
+    assert x_mm[n_tracking:] == pytest.approx([9.0] * (len(samples) - n_tracking), abs=1e-6)
+    assert all(s["transforms"][0]["translation"] == samples[n_tracking]["transforms"][0][
+        "translation"] for s in samples[n_tracking:])
+    # Slots kept on the sender's clock: each LOST packet left within a period of its slot's
+    # due time unless the sender reported slots missed (due times are a period apart, so a
+    # gap beyond two periods is only allowed by the slots skipped at either end of it).
+    lost = fires[n_tracking:len(samples)]
+    assert len(lost) >= 2
+    for (t0, m0), (t1, m1) in itertools.pairwise(lost):
+        assert t1 - t0 < P * (2 + m0 + m1), (t1 - t0, m0, m1)
+    # and they go on until the stop: never silent for the sender's stall threshold
+    # (the product's own "stalled" alarm)
+    stall_s = max(0.5, 4 * P)
+    assert fires[-1][0] > stopped_at - stall_s
+    assert max(t1 - t0 for (t0, _), (t1, _) in itertools.pairwise(fires[n_tracking:])) < stall_s
     assert health.level is SinkLevel.OK  # packets leave; the state says LOST
     assert pipe.status().error == "RuntimeError: engine died"
