@@ -40,9 +40,11 @@ from app.context import AppContext
 from app.icons import icon
 from app.pages import PageSpec
 from app.pages._base import Page
+from engine.frames import Frame
 from engine.loop import FrameRecord
 from engine.pipeline import RunInfo, RunStatus, TraceSample
 from engine.trackers.base import Overlay
+from widgets.depth_view import VIEW_MODES, compose_view
 from widgets.image_view import ImageView
 from widgets.param_form import ParamForm
 from widgets.pose_plots import PosePlots, ResidualPlots
@@ -86,6 +88,7 @@ class LivePage(Page):
         self.setObjectName("page_live")
         self.run = ctx.run
         self._latest: FrameRecord | None = None
+        self._shown_frame: Frame | None = None  # the frame on screen (kept after Stop)
         self._latency_ms: deque[float] = deque(maxlen=120)
         self._params_by_tracker: dict[str, Any] = {}
         self._frames_shown = 0
@@ -154,6 +157,14 @@ class LivePage(Page):
         self.image_view.setToolTip(
             "Live image. Points: green = used, red = rejected (weight); dashed box: ground truth"
         )
+        self.view_box = QComboBox()
+        for mode in VIEW_MODES:
+            self.view_box.addItem(mode.capitalize(), mode)
+        self.view_box.setToolTip(
+            "Show the colour image, the depth image (false colour, near = red, far = blue, "
+            "black = no depth) or both side by side"
+        )
+        self.view_box.currentIndexChanged.connect(self._on_view_mode)
         self.pose_plots = PosePlots()
         self.residual_plots = ResidualPlots()
 
@@ -167,6 +178,9 @@ class LivePage(Page):
             ("fps", "frames/s", "Frames processed per second (smoothed)"),
             ("latency", "latency (ms)", "Tracker time per frame: last / p95 of the last 120"),
             ("frame", "frame", "Index of the frame shown / frames in the source"),
+            ("skipped", "skipped", "Camera frames skipped before this one because the tracker "
+             "is slower than the camera (live sources take only the newest frame); "
+             "the rate over the last second"),
             ("residual", "residual", "Tracker residual of the last frame"),
             ("inliers", "inliers", "Fraction of points the tracker kept"),
             ("error", "error vs GT", "Translation error vs ground truth aligned at frame 0"),
@@ -216,7 +230,7 @@ class LivePage(Page):
         side.setMaximumWidth(380)
 
         left = QSplitter(Qt.Orientation.Vertical)
-        left.addWidget(self._titled("Camera view", self.image_view))
+        left.addWidget(self._titled("Camera view", self.image_view, self.view_box))
         left.addWidget(self._titled("Quality", self.residual_plots))
         left.setStretchFactor(0, 3)
         left.setStretchFactor(1, 1)
@@ -259,14 +273,22 @@ class LivePage(Page):
         self._update_controls()
 
     @staticmethod
-    def _titled(title: str, widget: QWidget) -> QWidget:
+    def _titled(title: str, widget: QWidget, tool: QWidget | None = None) -> QWidget:
         box = QWidget()
         layout = QVBoxLayout(box)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.setSpacing(2)
         label = QLabel(title)
         label.setObjectName("readout_caption")
-        layout.addWidget(label)
+        if tool is None:
+            layout.addWidget(label)
+        else:
+            head = QHBoxLayout()
+            head.setContentsMargins(0, 0, 0, 0)
+            head.addWidget(label)
+            head.addStretch(1)
+            head.addWidget(tool)
+            layout.addLayout(head)
         layout.addWidget(widget, 1)
         widget.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         return box
@@ -346,7 +368,8 @@ class LivePage(Page):
             self.ctx.log.error("no tracker available")
             return
         spec = self.source_picker.spec()
-        if self.source_picker.kind in (SourceKind.FOLDER, SourceKind.VIDEO) and spec:
+        recorded = (SourceKind.FOLDER, SourceKind.VIDEO, SourceKind.BAG)
+        if self.source_picker.kind in recorded and spec:
             self.ctx.add_recent_file(spec)
             self.source_picker.set_recent(self.ctx.recent_files())
         self._clear_live()
@@ -454,6 +477,7 @@ class LivePage(Page):
     def run_changed(self, info: RunInfo | None) -> None:
         self.samples_missed = 0
         self.image_view.clear_image("waiting for the first frame")
+        self._shown_frame = None
         self.pose_plots.clear_data()
         self.residual_plots.clear_data()
         self.pose_plots.redraw()
@@ -500,9 +524,11 @@ class LivePage(Page):
     def draw(self, record: FrameRecord) -> None:
         """Draw the newest record: image, its own overlay, its own state and numbers."""
         self._latest = record
+        if record.frame.color_bgr is not None:
+            self._shown_frame = record.frame  # a frame without a picture keeps the last one
         self._frames_shown += 1
         frame, result = record.frame, record.result
-        self.image_view.set_image(frame.color_bgr)
+        self.image_view.set_image(compose_view(frame.color_bgr, frame.depth_m, self.view_mode))
         overlay = result.overlay
         if result.box_xywh is not None and (overlay is None or not overlay.boxes_xywh):
             base = overlay if overlay is not None else Overlay()
@@ -520,7 +546,7 @@ class LivePage(Page):
                 overlay, point_weights=np.zeros(len(overlay.points_uv), np.float32))
         self.image_view.set_overlay(decimated(overlay), frame.gt_box_xywh)
         self.image_view.set_info(self._info_text(record))
-        self.status_light.set_state(result.state)
+        self.status_light.set_state(result.state, self._state_text(record))
         self._update_readouts(record)
 
     @Slot()
@@ -530,9 +556,31 @@ class LivePage(Page):
         self.pose_plots.redraw()
         self.residual_plots.redraw()
 
+    @property
+    def view_mode(self) -> str:
+        return str(self.view_box.currentData())
+
+    @Slot()
+    def _on_view_mode(self) -> None:
+        """Show the frame on screen in the new mode at once (also after Stop)."""
+        frame = self._shown_frame
+        if frame is not None:
+            self.image_view.set_image(compose_view(frame.color_bgr, frame.depth_m,
+                                                   self.view_mode))
+
+    @staticmethod
+    def _state_text(record: FrameRecord) -> str | None:
+        """"LOST · camera disconnected" while a live source has no picture."""
+        reason = record.frame.link_lost_reason
+        return f"{record.result.state.value} · {reason}" if reason else None
+
     def _info_text(self, record: FrameRecord) -> str:
         frame, result = record.frame, record.result
         parts = [f"frame {frame.index}", f"t = {frame.timestamp_s:.2f} s"]
+        if frame.link_lost_reason:
+            parts.append(f"{frame.link_lost_reason}, reconnecting")
+        if record.skipped_per_s > 0:
+            parts.append(f"skipping {record.skipped_per_s:.0f} frames/s")
         ov = result.overlay
         if ov is not None and ov.points_uv is not None and len(ov.points_uv):
             n = len(ov.points_uv)
@@ -557,6 +605,9 @@ class LivePage(Page):
         self.readouts["latency"].setText(f"{record.process_ms:6.1f} / {p95:.1f}")
         total = f" / {record.source_len}" if record.source_len else ""
         self.readouts["frame"].setText(f"{record.frame.index}{total}")
+        self.readouts["skipped"].setText(
+            f"{record.frame.skipped_before}  ({record.skipped_per_s:.0f}/s)"
+        )
         self.readouts["residual"].setText(
             "–" if result.residual is None else f"{result.residual:.4g}"
         )
