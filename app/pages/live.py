@@ -493,13 +493,14 @@ class LivePage(Page):
             self.status_light.set_state(None, "ERROR")
         else:
             self.status_light.set_state(None, "STOPPED")
-        shown = self._frames_shown
         self._clear_live()
         if error and not self.run.stopped_by_user:
             self.error_label.setText(error)
             self.error_label.setVisible(True)
         frames = status.frames if status is not None else 0
-        if shown == 0:
+        # the frame on screen, not a draw count: this runs twice per run end (the finished
+        # signal and the display clock), and the second call must not wipe the picture
+        if self._shown_frame is None:
             self.image_view.clear_image(f"stopped after {frames} frames (none shown on this page)")
         else:
             self.image_view.set_overlay(None, None)

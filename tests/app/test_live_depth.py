@@ -14,38 +14,49 @@ from engine.trackers.base import TrackResult, TrackState
 
 
 def test_bag_runs_and_the_view_toggles_colour_depth_both(  # type: ignore[no-untyped-def]
-    qtbot, window, live, tmp_path: Path
+    qtbot, window, live, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     pytest.importorskip("pyrealsense2", reason="the RealSense SDK has no wheel here")
     from engine.sources.realsense_bag import write_realsense_bag
     from engine.sources.synthetic import SyntheticSource
 
     bag = tmp_path / "s.bag"
-    src = SyntheticSource.from_options({"frames": "30", "width": "160", "height": "120"})
+    src = SyntheticSource.from_options({"frames": "60", "width": "160", "height": "120"})
     write_realsense_bag(src.frames(), bag, src.intrinsics)
     live.source_picker.set_spec(str(bag))
     live.tracker_box.setCurrentIndex(live.tracker_box.findData("opencv-odometry"))
+    live.view_box.setCurrentIndex(live.view_box.findData("depth"))
+    shown = []  # what each drawn frame put on screen: (mode, image shape, skipped read-out)
+    real_draw = live.draw
+
+    def draw(record: FrameRecord) -> None:
+        real_draw(record)
+        shown.append((live.view_mode, live.image_view.image_rgb.shape,
+                      live.readouts["skipped"].text()))
+
+    monkeypatch.setattr(live, "draw", draw)
     run = window.ctx.run
-    with qtbot.waitSignal(run.started, timeout=30_000):
-        live.start()
-    qtbot.waitUntil(lambda: live.draws >= 3, timeout=60_000)
+    with qtbot.waitSignal(run.finished, timeout=120_000):
+        live.start()  # the recording plays every frame to its end
+    assert run.frames_received == 60
+    assert shown
+    # every frame drawn in the chosen mode; a recording played every frame skips nothing
+    assert set(shown) == {("depth", (120, 160, 3), "0  (0/s)")}
+    # after the run the last frame stays on screen (the end is seen twice: by the finished
+    # signal and by the display clock) and the switch redraws it at once
+    live.display_tick()
+    live.run_ended(run.status())
+    assert live.image_view.info.toPlainText() == "stopped after 60 frames: the last frame shown"
+    depth = live.image_view.image_rgb
+    assert float(depth.astype(np.float32).var()) > 100.0  # false colour, not blank
     shapes = {}
     for mode in ("colour", "depth", "both"):
         live.view_box.setCurrentIndex(live.view_box.findData(mode))
-        image = live.image_view.image_rgb  # redrawn at once in the new mode
-        assert image is not None
-        shapes[mode] = image.shape
-        if mode == "depth":
-            assert float(image.astype(np.float32).var()) > 100.0  # false colour, not blank
+        shapes[mode] = live.image_view.image_rgb.shape
     assert shapes == {"colour": (120, 160, 3), "depth": (120, 160, 3), "both": (120, 320, 3)}
-    assert live.readouts["skipped"].text().startswith("0")  # a recording skips nothing
-    with qtbot.waitSignal(run.finished, timeout=10_000):
-        live.stop()
-    # after Stop the last frame stays on screen and the switch still works on it
-    live.view_box.setCurrentIndex(live.view_box.findData("colour"))
-    assert live.image_view.image_rgb.shape == (120, 160, 3)
-    live.view_box.setCurrentIndex(live.view_box.findData("both"))
-    assert live.image_view.image_rgb.shape == (120, 320, 3)
+    both = live.image_view.image_rgb
+    np.testing.assert_array_equal(both[:, 160:], depth)  # colour left, depth right
+    assert float(np.abs(both[:, :160].astype(int) - depth.astype(int)).mean()) > 10.0
 
 
 def _record(seq: int, frame: Frame, state: TrackState, skipped_per_s: float) -> FrameRecord:
