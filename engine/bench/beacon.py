@@ -33,6 +33,13 @@ the same is done for the final beacon error (the paper's claim for MA is about t
 Then steps per second at 200 particles (tracker adapter and bare filter, medians of
 repeats) and robustness to 10 % outlier ranges (setting B: plain Gaussian weighting as in the
 paper vs robust weighting).
+
+Part 2 (:mod:`engine.bench.beacon_paper`): the paper's method as published (``preset=paper``)
+beside ours on a studio-like simulation (``paper``, ``default``, ``studio``), on the paper's
+own experiment (``paper_experiment_sets``), the particles each needs for the paper's accuracy
+on a 75th-percentile metric with bootstrap intervals (``particles_for_accuracy``) and the
+ablation of every extension (``ablation``). ``--tune-p`` only chooses the Map Adjustment gain
+of both sets on training seeds.
 """
 
 from __future__ import annotations
@@ -47,6 +54,8 @@ from typing import Any
 import numpy as np
 
 from engine.bench import BenchSpec
+from engine.bench import beacon_paper as bp
+from engine.bench.beacon_paper import run_sim
 from engine.progress import log
 
 HELP = "range-beacon SLAM (Yang 2007): paper experiment, Map Adjustment, particles, speed"
@@ -61,48 +70,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=30, help="seeds per setting (default 30)")
     parser.add_argument("--plots", type=Path, default=None, help="folder for PNG plots")
     parser.add_argument("--quick", action="store_true", help="fewer seeds and particle counts")
-
-
-def align_rot_reflect(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
-    """Best orthogonal map (rotation or reflection) about the origin taking est onto gt."""
-    U, _, Vt = np.linalg.svd(est.T @ gt)
-    aligned: np.ndarray = est @ (U @ Vt)
-    return aligned
+    parser.add_argument("--tune-p", action="store_true",
+                        help="only choose the Map Adjustment gain p of the paper and default "
+                        "sets on training seeds (1000+), print the objective per p")
 
 
 def run_once(params: Any, seed: int, sim_cfg: Any, layout: dict[str, tuple[float, float]]
              ) -> dict[str, Any]:
-    from engine.beacons.filter import BeaconSlamFilter
+    """One run of the paper's experiment (seed ``seed``, filter seed 1000 + seed)."""
     from engine.beacons.simulator import simulate
 
-    sim = simulate(layout, replace(sim_cfg, seed=seed))
-    f = BeaconSlamFilter(sim.ids, replace(params, seed=1000 + seed), layout_xy=layout)
-    path = np.empty_like(sim.path_xy)
-    est = None
-    for t in range(len(sim.path_xy)):
-        est = f.step(sim.ranges_m[t])
-        path[t] = est.cam_xy
-    assert est is not None
-    err_t = np.linalg.norm(path - sim.path_xy, axis=1)
-    b_err = np.linalg.norm(est.beacons_xy - sim.beacons_xy, axis=1)
-    n = len(path)
-    aligned = align_rot_reflect(np.vstack([path, est.beacons_xy]),
-                                np.vstack([sim.path_xy, sim.beacons_xy]))
-    err_al = np.linalg.norm(aligned[:n] - sim.path_xy, axis=1)
-    b_al = np.linalg.norm(aligned[n:] - sim.beacons_xy, axis=1)
-    return {
-        "err_t": err_t,
-        "err_t_aligned": err_al,
-        "path_rmse": float(np.sqrt(np.mean(err_t**2))),
-        "final20": float(np.mean(err_t[-20:])),
-        "beacon_err_final": float(np.mean(b_err)),
-        "path_rmse_aligned": float(np.sqrt(np.mean(err_al**2))),
-        "beacon_err_final_aligned": float(np.mean(b_al)),
-        "path": path,
-        "truth": sim.path_xy,
-        "beacons": est.beacons_xy,
-        "truth_beacons": sim.beacons_xy,
-    }
+    return run_sim(params, simulate(layout, replace(sim_cfg, seed=seed)), layout, 1000 + seed)
 
 
 def _summary(runs: list[dict[str, Any]], aligned: bool) -> dict[str, Any]:
@@ -288,6 +266,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from engine.beacons.simulator import PAPER_LAYOUT, SimConfig
 
     n_seeds = max(2, int(args.seeds) if not args.quick else min(int(args.seeds), 4))
+    if args.tune_p:
+        log(f"beacon bench: choosing p on training seeds ({n_seeds} seeds from "
+            f"{bp.TRAIN_SEED0})")
+        return {"bench": "beacon", "map_adjust_p_tuning": bp.tune_map_adjust_p(n_seeds)}
     seeds = range(n_seeds)
     grid = PARTICLE_GRID if not args.quick else (20, 50, 200)
     sweep_seeds = range(min(n_seeds, SWEEP_SEEDS))
@@ -351,6 +333,26 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     for k, v in outl.items():
         log(f"  {k:25s} path RMSE {v['path_rmse']:.2f} m, beacons {v['beacon_err_final']:.2f} m")
 
+    log(f"beacon bench: studio simulation, paper and default sets, {n_seeds} seeds")
+    studio = bp.studio_scene(n_seeds)
+    s_grid = bp.GRID if not args.quick else bp.QUICK_GRID
+    sweep = bp.particle_sweep(studio, s_grid)
+    side = bp.side_by_side(sweep, studio)
+    log("beacon bench: the paper's experiment (4 beacons, 120 steps), paper and default sets")
+    paper_scene = bp.paper_scene(n_seeds)
+    paper_sweep = bp.particle_sweep(paper_scene, (200,))
+    side_paper = bp.side_by_side(paper_sweep, paper_scene)
+    need = bp.particles_needed(s_grid, sweep, "beacon_err_final", "paper", bp.SETS)
+    need_path = bp.particles_needed(s_grid, sweep, "path_rmse", "paper", bp.SETS)
+    need_own = bp.particles_needed(s_grid, sweep, "beacon_err_final", "default", ("default",))
+    for s_name in bp.SETS:
+        nd = need[s_name]
+        log(f"  particles for the paper's accuracy ({need['target_m']:.2f} m, p75 beacon "
+            f"error): {s_name} with MA {nd['with_ma']} {nd['ci95']['with_ma']}, without "
+            f"{nd['without_ma']} {nd['ci95']['without_ma']}")
+    log("beacon bench: ablation on the studio (200 particles, with MA)")
+    abl = bp.ablation(studio)
+
     log("beacon bench: speed at 200 particles (medians of 5 repeats, shared CPU)")
     tracker_rate, filter_rate = (_steps_per_s(hint, 3, 200) if args.quick
                                  else _steps_per_s(hint))
@@ -360,6 +362,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if args.plots is not None:
         example = {k: runs["hint"][k][0] for k in runs["hint"]}
         plots = _plots(Path(args.plots), settings, example, sweeps)
+        plots += bp.plots(Path(args.plots), side, {k: v[200] for k, v in sweep.items()},
+                          need, abl)
         log(f"  plots: {', '.join(plots)}")
 
     def sweep_json(sw: dict[str, Any]) -> dict[str, Any]:
@@ -427,6 +431,42 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "outliers_10pct": {k: {kk: vv for kk, vv in v.items()
                                if not kk.startswith("err_over_time")}
                            for k, v in outl.items()},
+        "paper": {**side["paper"], "scene": "studio",
+                  "params": _params_json(bp.for_scene(bp.set_params("paper"), studio))},
+        "default": {**side["default"], "scene": "studio",
+                    "params": _params_json(bp.for_scene(bp.set_params("default"), studio))},
+        "studio": {
+            "scene": _studio_json(n_seeds),
+            "metric": "path_rmse / beacon_err_final after the best rotation/reflection "
+            "about the start (range-only data do not observe it), *_abs without; means over "
+            "seeds with 95 % bootstrap intervals (ci95), p75 = 75th percentile",
+            "paper": side["paper"], "default": side["default"],
+        },
+        "paper_experiment_sets": {
+            "scene": "the paper's sec. IV: beacons A-D, 120 steps, 200 particles, each set at "
+            "its own motion std",
+            "paper": side_paper["paper"], "default": side_paper["default"]},
+        "particles_for_accuracy": {
+            "metric": need["metric"], "scene": "studio",
+            "with_ma": need["paper"]["with_ma"], "without_ma": need["paper"]["without_ma"],
+            "ci95": need["paper"]["ci95"],
+            "ratio_without_over_with": need["paper"]["ratio_without_over_with"],
+            "target_m": need["target_m"], "target_ci95_m": need["target_ci95_m"],
+            "definition": "the paper's accuracy = " + need["target_definition"] + " (p75 of "
+            "the final beacon error over seeds); particles needed = where the p75 curve over "
+            "the grid first reaches it (log-interpolated); ci95 by resampling the seeds",
+            "grid": need["grid"], "sets": {k: need[k] for k in bp.SETS},
+            "default_to_its_own_accuracy": need_own["default"],
+            "default_own_target_m": need_own["target_m"],
+            "by_path_rmse": {"metric": need_path["metric"], "target_m": need_path["target_m"],
+                             **{k: need_path[k] for k in bp.SETS}},
+            "ok_2x_paper_set": bool(need["paper"]["ratio_without_over_with"] is not None
+                                    and need["paper"]["ratio_without_over_with"] >= 2.0),
+            "ok_2x_default_set": bool(
+                need_own["default"]["ratio_without_over_with"] is not None
+                and need_own["default"]["ratio_without_over_with"] >= 2.0),
+        },
+        "ablation": abl,
         "steps_per_s": tracker_rate,
         "steps_per_s_filter_only": filter_rate,
         "plots": plots,
@@ -435,6 +475,30 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                                 and ratio_b is not None and ratio_b >= 2.0),
         "ok_speed_1000": bool(tracker_rate >= 1000.0 and math.isfinite(tracker_rate)),
     }
+
+
+def _params_json(p: Any) -> dict[str, Any]:
+    from dataclasses import asdict
+
+    return {k: v for k, v in asdict(p).items() if k != "seed"}
+
+
+def _studio_json(n_seeds: int) -> dict[str, Any]:
+    from dataclasses import asdict
+
+    from engine.beacons.studio_sim import (
+        STUDIO_BEACONS_XYZ,
+        StudioRangingConfig,
+        studio_camera_path,
+    )
+
+    path = studio_camera_path()
+    speed = np.linalg.norm(np.diff(path, axis=0), axis=1) * StudioRangingConfig().rate_hz
+    return {"beacons_xyz_m": {k: list(v) for k, v in STUDIO_BEACONS_XYZ.items()},
+            "steps": len(path), "seeds": n_seeds, "max_speed_m_s": float(speed.max()),
+            "camera_height_m": [float(path[:, 2].min()), float(path[:, 2].max())],
+            "ranging": {k: v for k, v in asdict(StudioRangingConfig()).items() if k != "seed"},
+            "motion_sigma_m": bp.STUDIO_MOTION_SIGMA_M}
 
 
 BENCHES = (BenchSpec(name="beacon", help=HELP, add_arguments=add_arguments, run=run),)

@@ -15,6 +15,10 @@
   by a head without encoder, tracked with only what the calibration tools estimated
   (:func:`engine.ptz.sim_calibration.calibrate_sim`: line-based distortion, DLTs at four
   motor poses -> head geometry, pan/tilt from the reference markers every frame).
+- the published experiment (:mod:`engine.bench.ptz_paper`): ``paper_experiment.*`` (the
+  paper's method, ``preset=paper``) and ``paper_experiment_default.*`` (ours) on the circle of
+  sec. 6.2 (turn rate 2 pi 0.0217 rad/s between the models, 140 s, 0.5 s sampling),
+  ``paper_range*`` (7 m to 40 cm), ``paper_q_in_metres``, ``harder_*``; ``--plots DIR``.
 
 Each experiment is one function taking the parsed arguments and returning a dict; they run
 in :data:`EXPERIMENTS` order and their keys are flattened as ``experiment.key``.
@@ -48,6 +52,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="calibration parts only (no circle, VISCA loop or calibrated chain)")
     p.add_argument("--skip-visca", action="store_true", help="no VISCA loop")
     p.add_argument("--skip-chain", action="store_true", help="no calibrated chain")
+    p.add_argument("--skip-paper", action="store_true",
+                   help="skip the published experiment (paper_experiment.*, paper_range.*)")
+    p.add_argument("--plots", type=Path, default=None, help="folder for PNG plots")
 
 
 def track_circle(src: Any, tracker: Any, duration_s: float) -> dict[str, Any]:
@@ -353,6 +360,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         log(f"calibrated chain: {args.duration:.0f} s, no simulator truth in the tracker")
         out["calibrated_chain"] = run_calibrated_chain(args.duration, args.period)
         _log_loop(out["calibrated_chain"])
+    if not args.skip_paper:
+        from engine.bench import ptz_paper
+
+        groups, files = ptz_paper.run(args.plots)
+        out.update(groups)
+        out["plots"] = {"files": files}
     flat: dict[str, Any] = {}
     for group, vals in out.items():
         for k, v in vals.items():

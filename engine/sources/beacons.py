@@ -15,6 +15,9 @@ Every frame has ``color_bgr=None`` and two payloads:
 Specs (see :func:`open_beacon_source`):
 
 - ``beacons[:layout=paper|FILE,steps=120,speed=0.15,noise=0.1,dropout=0,outliers=0,seed=0,fps=10]``
+- ``beacons:scene=studio[,sensor=uwb|ultrasonic,seed=0]``: the studio simulation
+  (:mod:`engine.beacons.studio_sim`: a crane move in a 3D studio, ranges projected to the
+  floor), at its ranging rate
 - ``beacons-csv:FILE[,layout=FILE,window=0]``
 - ``beacons-udp:[port=9871,host=127.0.0.1,layout=FILE,heartbeat=0.5,idle_timeout=0]``
 """
@@ -106,15 +109,44 @@ class BeaconSimSource(Source):
         layout: Mapping[str, Sequence[float]] | None = None,
         config: Any | None = None,
         fps: float = 10.0,
+        run: Any | None = None,
+        name: str | None = None,
     ) -> None:
         from engine.beacons.simulator import PAPER_LAYOUT, SimConfig, simulate
 
         self.layout = dict(layout if layout is not None else PAPER_LAYOUT)
         self.config = config or SimConfig()
-        self.run = simulate(self.layout, self.config)
+        self.run = run if run is not None else simulate(self.layout, self.config)
         self.nominal_fps = float(fps)
-        self.name = f"beacon simulator ({len(self.layout)} beacons, {self.config.n_steps} steps)"
+        self.name = name or (f"beacon simulator ({len(self.layout)} beacons, "
+                             f"{self.config.n_steps} steps)")
         self._layout = _frozen_layout(self.layout)
+
+    @classmethod
+    def studio(cls, opts: Mapping[str, str]) -> BeaconSimSource:
+        """``scene=studio``: the studio simulation (``sensor``, ``seed`` options)."""
+        from engine.beacons.studio_sim import (
+            StudioRangingConfig,
+            simulate_studio,
+            studio_layout_xy,
+        )
+
+        o = dict(opts)
+        sensor = o.pop("sensor", "uwb")
+        seed_text = o.pop("seed", "0")
+        if o:
+            raise SourceError(f"beacons source: scene=studio takes sensor and seed, not "
+                              f"{', '.join(sorted(o))}")
+        if sensor not in ("uwb", "ultrasonic"):
+            raise SourceError(f"beacons source: sensor={sensor!r}: expected uwb or ultrasonic")
+        seed = int(number(seed_text, "beacons source: option seed", integer=True,
+                          error=SourceError, text=True))
+        cfg = StudioRangingConfig(seed=seed)
+        if sensor == "ultrasonic":
+            cfg = cfg.with_preset("ultrasonic")
+        run = simulate_studio(cfg).floor
+        return cls(studio_layout_xy(), None, cfg.rate_hz, run=run,
+                   name=f"beacon studio simulation ({sensor}, {len(run.path_xy)} steps)")
 
     @classmethod
     def from_options(cls, opts: Mapping[str, str]) -> BeaconSimSource:
@@ -122,6 +154,11 @@ class BeaconSimSource(Source):
         from engine.beacons.simulator import SimConfig
 
         o = dict(opts)
+        scene = o.pop("scene", "paper")
+        if scene == "studio":
+            return cls.studio(o)
+        if scene != "paper":
+            raise SourceError(f"beacons source: scene={scene!r}: expected paper or studio")
         lay_opt = o.pop("layout", "paper")
         layout = None if lay_opt in ("", "paper") else load_layout(lay_opt)
         names = {"steps": ("n_steps", True), "speed": ("speed_m", False),
@@ -141,7 +178,7 @@ class BeaconSimSource(Source):
                                         text=True)
             else:
                 raise SourceError(
-                    f"beacons source: unknown option {key!r} (known: layout, fps, "
+                    f"beacons source: unknown option {key!r} (known: scene, layout, fps, "
                     f"{', '.join(names)})"
                 )
         try:

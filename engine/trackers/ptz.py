@@ -43,6 +43,10 @@ F64 = NDArray[np.float64]
 
 _SIM = CircleScenario()
 PAPER_OMEGAS = tuple(2.0 * math.pi / 50.0 * j for j in range(4))
+#: sec. 6.1: process-noise PSD "diag[0.1, 0.1, 0.1]"; the paper works in millimetres (its
+#: figs. 3-5), so 0.1 mm^2/s^5 = 1e-7 m^2/s^5 (read in metres, 0.1 m^2/s^5 makes the bank
+#: pick the fastest model on the paper's circle: bench ptz ``paper_q_in_metres``)
+PAPER_Q_JERK_PSD = 1e-7
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,8 +93,21 @@ class PtzParams(Params):
                                help="re-centre when the target is this far from the image centre "
                                "(px)")
 
-    #: the built-in ``ptz-sim`` source's ball (the Pan-tilt page starts on it)
+    #: the built-in ``ptz-sim`` source's ball (the Pan-tilt page starts on it); the paper's
+    #: method as published (sec. 4-6)
     PRESETS: ClassVar[Mapping[str, Preset]] = {
+        "paper": Preset(
+            "Gaspar 2009 as published: four models 2 pi / 50 [0, 1, 2, 3] rad/s (sec. 6.1), "
+            "process noise PSD diag[0.1, 0.1, 0.1] read in the paper's millimetres (figs. 3-5: "
+            "0.1 mm^2/s^5 = 1e-7 m^2/s^5 white jerk per axis), snake alpha 0.5, beta 0.05 "
+            "with the image-gradient force (sec. 4.1, 6.1), the centre as the mean of the "
+            "contour points (sec. 4.2), pure MMAE (no probability floor) and no "
+            "re-initialisation on divergence. The paper gives no value for the measurement "
+            "noise R ('from an accurate study of the available sensors'), the initial "
+            "covariance or the dead band (kept as set)",
+            omega_max_rad_s=2.0 * math.pi / 50.0 * 3, n_models=4, q_jerk_psd=PAPER_Q_JERK_PSD,
+            snake_alpha=0.5, snake_beta=0.05, external_force="gradient",
+            centre_method="contour", min_model_prob=0.0, nis_reset=1e6),
         "ptz-sim": Preset(
             f"target colour (BGR {_SIM.ball_bgr}) and radius ({_SIM.ball_radius_m} m) of the "
             "ball of the built-in ptz-sim source",

@@ -24,5 +24,24 @@ def test_bench_beacon_json_keys(capsys: pytest.CaptureFixture[str], tmp_path: Pa
     assert need["definition"]
     assert res["steps_per_s"] > 0
     assert len(res["with_ma"]["err_over_time_mean"]) == 13  # every 10th of 121 steps
+    # the paper's method as published beside ours, on the studio simulation
+    for name in ("paper", "default"):
+        for ma in ("with_ma", "without_ma"):
+            row = res[name][ma]
+            for key in ("path_rmse", "beacon_err_final"):
+                assert isinstance(row[key], float)
+                lo, hi = row["ci95"][key]
+                assert lo <= row[key] <= hi
+    assert res["paper"]["params"]["outlier_prob"] == 0.0
+    assert res["paper"]["params"]["roughen_h"] == 0.0
+    pfa = res["particles_for_accuracy"]
+    assert pfa["metric"].startswith("p75")
+    assert set(pfa["ci95"]) >= {"with_ma", "without_ma"}
+    assert "with_ma" in pfa
+    assert "without_ma" in pfa
+    rows = {r["name"]: r for r in res["ablation"]["rows"]}
+    assert "default (all on)" in rows
+    assert "minus_default" in rows["without robust_weighting"]
+    assert res["ablation"]["added"][0]["name"] == "paper (all off)"
     for png in res["plots"]:
         assert Path(png).stat().st_size > 1000
