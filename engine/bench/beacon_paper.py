@@ -441,7 +441,8 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
             m = np.mean(e, axis=0)
             lo, hi = np.percentile(e, [25, 75], axis=0)
             x = np.arange(len(m))
-            ax.plot(x, m, ls, color=colours[name], label=f"{ma.replace('_', ' ')} (mean)")
+            ax.plot(x, m, ls, color=colours[name],
+                    label=f"{ma.replace('_', ' ').replace('ma', 'MA')} (mean)")
             ax.fill_between(x, lo, hi, color=colours[name], alpha=0.12 if ma == "with_ma"
                             else 0.06)
         ax.set_title(f"{name} set: camera error over time, 200 particles "
@@ -467,7 +468,7 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
             ci = particles[name]["curve_p75_ci95"][ma]
             y = [c[str(n)] for n in grid]
             ax.plot(grid, y, ls, marker="o", color=colours[name],
-                    label=f"{name}, {ma.replace('_', ' ')}")
+                    label=f"{name}, {ma.replace('_', ' ').replace('ma', 'MA')}")
             ax.fill_between(grid, [ci[str(n)][0] for n in grid], [ci[str(n)][1] for n in grid],
                             color=colours[name], alpha=0.08)
     ax.axhline(particles["target_m"], color="k", ls=":",
@@ -477,8 +478,12 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
     ax.set_xlabel("particles")
     ax.set_ylabel("final beacon error, p75 over seeds (m)")
     pw = particles["paper"]
-    ax.set_title(f"Particles for the paper's accuracy: paper set with MA {pw['with_ma']}, "
-                 f"without {pw['without_ma']}", fontsize=9)
+
+    def count(x: float | None) -> str:
+        return "not reached" if x is None else f"{x:.0f}"
+
+    ax.set_title(f"Particles for the paper's accuracy: paper set with MA {count(pw['with_ma'])}"
+                 f", without {count(pw['without_ma'])}", fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     p = folder / "beacon_studio_particles.png"
