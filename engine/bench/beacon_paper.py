@@ -273,8 +273,9 @@ def particles_needed(grid: Sequence[int], sweep: Mapping[str, Mapping[int, Runs]
             reps[k].append(nd[k])
 
     def ci(x: Sequence[float]) -> list[float | None]:
-        a = np.asarray(x)
-        lo, hi = np.percentile(a, [2.5, 97.5])
+        a = np.sort(np.asarray(x, dtype=np.float64))  # may hold inf: order statistics only
+        lo = float(a[math.floor(0.025 * (a.size - 1))])
+        hi = float(a[math.ceil(0.975 * (a.size - 1))])
         return [float(lo) if math.isfinite(lo) else None, float(hi) if math.isfinite(hi)
                 else None]
 
