@@ -72,3 +72,18 @@ def test_paper_set_picks_the_model_closest_to_the_true_turn_rate() -> None:
     assert abs(s["omega_est_final_rad_s"] - PAPER_OMEGAS[1]) < 0.02
     assert s["pos_err_m_steady"] < 0.2  # fig. 5: beneath 20 cm
     assert math.isfinite(s["vel_err_m_s_steady"])
+
+
+def test_paper_lens_distorts_and_the_line_based_fit_corrects_it() -> None:
+    """Sec. 3.3 in the published experiment: the simulated lens distorts and the line-based
+    model fitted to straight lines seen through it undoes the distortion to a pixel."""
+    from engine.ptz.paper_sim import PAPER_LENS_K3, lens_calibration
+    from engine.ptz.sim import PtzSimSource
+
+    sc = paper_circle()
+    assert sc.distortion_k3 == PAPER_LENS_K3 != 0.0
+    cal, rep = lens_calibration(PtzSimSource(sc))
+    assert cal.radial is not None
+    assert rep["straightness_after_px"] < 0.25 * rep["straightness_before_px"]
+    assert rep["max_correction_err_px"] < 1.0
+    assert rep["k_est"][0] == pytest.approx(PAPER_LENS_K3, abs=0.03)
