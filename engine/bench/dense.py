@@ -23,7 +23,18 @@ compare within one run):
   the sweep store) tracked on an empty-studio cycle: max/mean translation error per count.
 - **memory**: peak RSS of a child process tracking with a store of at least 30 keyframes.
 
-``--plots DIR`` writes ``rail_error.png`` and ``keyframe_count.png`` (matplotlib, Agg).
+- **paper** (:mod:`engine.bench.dense_paper`): ``preset=paper`` beside the default in every
+  part: the rail's ``rail.rows`` (``default_*`` / ``paper_*``, keyframe and incremental, and
+  ``*dirty_sweep_keyframe``: Fig. 13's test with keyframes from a sweep that had the presenter
+  walking through it), ``fig14`` (Fig. 14 with rotation error: counts all/14/9/7/5, both
+  sets; ``fig14.rot_err_deg_max`` is the default set's largest rotation error over the counts
+  with the sweep's poses, ``fig14.paper.*`` the paper set's), ``fig14_sba`` (the same with
+  SBA-refined keyframe poses as the reference, as the paper does, and its ``vs_full_*`` errors
+  against tracking with every SBA keyframe), ``real.dense-incremental-paper``, and
+  ``ablation`` (one extension off at a time on the rail and on TUM).
+
+``--plots DIR`` writes ``rail_error.png``, ``keyframe_count.png``, ``fig14.png`` and
+``fig13_dirty_sweep.png`` (matplotlib, Agg).
 """
 
 from __future__ import annotations
@@ -40,7 +51,6 @@ from typing import Any
 
 import numpy as np
 
-from engine.arrays import u8
 from engine.bench import BenchSpec
 from engine.progress import log
 from engine.shared_data import shared_data_dir
@@ -62,7 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="sweep: new keyframe every this many metres (>= 30 keyframes)")
     parser.add_argument("--points", type=int, default=8192, help="reference points")
     parser.add_argument("--skip", default="",
-                        help="comma list of parts to skip: real, speed, rail, keyframes, memory")
+                        help="comma list of parts to skip: real, speed, rail, keyframes, memory, "
+                        "paper (the paper set's and dirty-sweep trackers), ablation")
     parser.add_argument("--plots", default=None, metavar="DIR", help="write PNG plots here")
 
 
@@ -96,6 +107,7 @@ def _frame_to_frame_error(frames: list[Any], poses: list[np.ndarray]) -> float |
 
 
 def _real(points: int) -> dict[str, Any]:
+    from engine.bench.dense_paper import set_params
     from engine.evaluation.metrics import ate, rpe
     from engine.evaluation.trajectory import Trajectory, read_tum
     from engine.sources.tum import TumSource
@@ -115,8 +127,11 @@ def _real(points: int) -> dict[str, Any]:
         ("opencv-icp", "opencv-odometry", {"algorithm": "icp"}),
         ("open3d-odometry", "open3d-odometry", {}),
         ("dense", "dense", {"n_points": points}),
+        ("dense-incremental-paper", "dense-incremental", {"n_points": points, "preset": "paper"}),
     ):
-        tr = create_tracker(tracker, **kw)
+        preset = kw.pop("preset", None)
+        tr = (create_tracker(tracker, params=set_params(str(preset), points)) if preset
+              else create_tracker(tracker, **kw))
         poses, ms, lost = [], [], 0
         for f in frames:
             t0 = time.perf_counter()
@@ -166,7 +181,10 @@ def _sweep_store(points: int, kf_dist: float) -> Any:
     return res
 
 
-def _rail(args: argparse.Namespace, store: Any) -> dict[str, Any]:
+def _rail(args: argparse.Namespace, store: Any, extra: dict[str, Any] | None = None
+          ) -> dict[str, Any]:
+    """Fig. 13; ``extra``: more trackers run on the same frames (their rows in ``rows``)."""
+    from engine.bench.dense_paper import rail_rows
     from engine.dense.details import DenseDetails
     from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
@@ -184,9 +202,20 @@ def _rail(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     lost_d = lost_i = 0
     presenter = []
     relock = []
+    poses: dict[str, list[Any]] = {k: [] for k in ("default_keyframe", "default_incremental",
+                                                    *(extra or {}))}
+    lost_x: dict[str, int] = {}
+    gts: list[Any] = []
     for f in src.frames():
         rd = dense.track(f)
         ri = incr.track(f)
+        poses["default_keyframe"].append(rd.T_world_cam)
+        poses["default_incremental"].append(ri.T_world_cam)
+        for name, tr in (extra or {}).items():
+            rx = tr.track(f)
+            poses[name].append(rx.T_world_cam)
+            lost_x[name] = lost_x.get(name, 0) + (0 if rx.state.is_good else 1)
+        gts.append(f.gt_T_world_cam)
         err_d.append(_terr(rd.T_world_cam, f.gt_T_world_cam))
         err_i.append(_terr(ri.T_world_cam, f.gt_T_world_cam))
         lost_d += 0 if rd.state.is_good else 1
@@ -220,7 +249,16 @@ def _rail(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     }
     log(f"rail: dense max {rail['keyframe_max_err_m'] * 1e3:.2f} mm, incremental final "
          f"{rail['incremental_final_err_m'] * 1e3:.2f} mm")
+    rows, series_all = rail_rows(poses, gts, {"default_keyframe": lost_d,
+                                               "default_incremental": lost_i, **lost_x},
+                                 args.cycles)
+    rail["rows"] = rows
+    rail["keyframe_rot_err_deg_max"] = rows["default_keyframe"]["rot_err_deg_max"]
+    for name, r in rows.items():
+        log(f"rail {name:28s} max {r['max_err_m'] * 1e3:8.2f} mm {r['rot_err_deg_max']:6.3f} "
+            f"deg, final {r['final_err_m'] * 1e3:8.2f} mm, lost {r['lost_frames']}")
     rail["_series"] = {"dense": ed, "incremental": ei, "presenter": np.asarray(presenter)}
+    rail["_series_all"] = series_all
     return rail
 
 
@@ -313,74 +351,6 @@ def _speed(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     log("  stages (median ms): " + ", ".join(
         f"{k} {v:.2f}" for k, v in out["stages_ms"]["dense"].items()))
     return out
-
-
-def _ground_truth_store(store: Any) -> Any:
-    """The sweep's keyframes with their true poses (the paper's bundle-adjusted keyframes):
-    each keyframe image is found again in the sweep pass and given that frame's truth."""
-    from engine.sources import open_source
-
-    src = open_source(_rail_spec(1, SWEEP_CYCLE_S, 0))
-    want = {k.id: k for k in store.keyframes}
-    found: dict[int, np.ndarray] = {}
-    for f in src.frames():
-        if f.color_bgr is None or f.gt_T_world_cam is None:
-            continue  # (the built-in studio's frames have both)
-        gray = f.color_bgr if f.color_bgr.ndim == 2 else None
-        for kid, k in want.items():
-            if kid in found:
-                continue
-            if float(np.linalg.norm(k.T_world_cam[:3, 3] - f.gt_T_world_cam[:3, 3])) > 0.02:
-                continue
-            if gray is None:
-                import cv2
-
-                gray = u8(cv2.cvtColor(f.color_bgr, cv2.COLOR_BGR2GRAY))
-            if np.array_equal(gray, k.gray):
-                found[kid] = np.array(f.gt_T_world_cam)
-    return store.subset(found).with_poses(found)
-
-
-def _keyframe_counts(args: argparse.Namespace, store: Any) -> dict[str, Any]:
-    """Fig. 14: stores thinned to every k-th keyframe, tracked on an empty-studio cycle.
-
-    Two families: the sweep's keyframes with their tracked poses, and the same keyframes
-    with their true poses (as the paper's bundle-adjusted ground-truth keyframes), which
-    isolates the keyframe-switching error from the sweep's own pose error.
-    """
-    from engine.dense.params import DenseParams
-    from engine.dense.tracking import DenseKeyframeTracker
-    from engine.sources import open_source
-
-    gt_store = _ground_truth_store(store)
-    log(f"keyframes: {len(gt_store)} of {len(store)} sweep keyframes matched to their truth")
-    subsets: dict[tuple[str, int], Any] = {}
-    for family, st in (("sweep", store), ("true_poses", gt_store)):
-        ids = [k.id for k in st.keyframes]
-        for step in (1, 2, 3, 5, 8):
-            sub = ids[::step]
-            if len(sub) >= 2 and (family, len(sub)) not in subsets:
-                subsets[(family, len(sub))] = st.subset(sub)
-    trackers = {
-        key: DenseKeyframeTracker(DenseParams(n_points=args.points), store=st)
-        for key, st in subsets.items()
-    }
-    errs: dict[tuple[str, int], list[float]] = {key: [] for key in trackers}
-    lost: dict[tuple[str, int], int] = dict.fromkeys(trackers, 0)
-    src = open_source(_rail_spec(1, args.cycle_s, 0))
-    for f in src.frames():
-        for key, tr in trackers.items():
-            r = tr.track(f)
-            errs[key].append(_terr(r.T_world_cam, f.gt_T_world_cam))
-            lost[key] += 0 if r.state.is_good else 1
-    rows = []
-    for key in sorted(errs, key=lambda k: (k[0], -k[1])):
-        e = np.asarray(errs[key])
-        rows.append({"poses": key[0], "keyframes": key[1], "max_err_m": float(np.nanmax(e)),
-                     "mean_err_m": float(np.nanmean(e)), "lost_frames": lost[key]})
-        log(f"keyframes {key[0]:10s} {key[1]:3d}: max {np.nanmax(e) * 1e3:7.2f} mm, mean "
-             f"{np.nanmean(e) * 1e3:6.2f} mm, lost {lost[key]}")
-    return {"rows": rows}
 
 
 _MEM_CHILD = r"""
@@ -488,13 +458,20 @@ def _plots(folder: Path, rail: dict[str, Any] | None, kfc: dict[str, Any] | None
     return written
 
 
+def _dirty_sweep_spec() -> str:
+    """The sweep pass with the presenter walking in from the start (Fig. 13, not clean)."""
+    return _rail_spec(1, SWEEP_CYCLE_S, 0) + ",presenter=1,presenter_start=0"
+
+
 def run(args: argparse.Namespace) -> dict[str, Any]:
+    from engine.bench import dense_paper
     from engine.sources import open_source
 
     skip = {s.strip() for s in str(args.skip).split(",") if s.strip()}
     t_start = time.perf_counter()
     out: dict[str, Any] = {"points": args.points, "iterations": [2, 3, 10]}
     rail = kfc = None
+    figs: dict[str, Any] = {}
     if "real" not in skip:
         out["real"] = _real(args.points)
     sw = _sweep_store(args.points, args.kf_dist)
@@ -504,12 +481,29 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if "speed" not in skip:
         out["speed"] = _speed(args, sw.store)
         out["stages_ms"] = out["speed"]["stages_ms"]["dense"]
+    paper = "paper" not in skip
+    dirty = None
+    if paper and not {"rail", "ablation"} <= skip:
+        dirty = dense_paper.dirty_sweep(args.points, args.kf_dist, _dirty_sweep_spec())
+        out["sweep"]["dirty_keyframes"] = len(dirty)
     if "rail" not in skip:
-        rail = _rail(args, sw.store)
+        extra = dense_paper.rail_trackers(args.points, sw.store, dirty) if paper else None
+        rail = _rail(args, sw.store, extra)
         out["rail"] = {k: v for k, v in rail.items() if not k.startswith("_")}
     if "keyframes" not in skip:
-        kfc = _keyframe_counts(args, sw.store)
-        out["keyframe_count"] = kfc
+        figs = dense_paper.fig14(sw.store, _rail_spec(1, SWEEP_CYCLE_S, 0),
+                                 _rail_spec(1, args.cycle_s, 0), args.points)
+        kfc = figs["keyframe_count"]
+        out.update(figs)
+    if paper and "ablation" not in skip:
+        frames_abl = open_source(_rail_spec(2, args.cycle_s, 1)).frames()
+        tum = shared_data_dir() / "tum_fr1_xyz_37"
+        tum_frames = None
+        if tum.is_dir():
+            from engine.sources.tum import TumSource
+
+            tum_frames = list(TumSource(tum).frames())
+        out["ablation"] = dense_paper.ablation(frames_abl, dirty, args.points, tum_frames)
     if "memory" not in skip:
         src = open_source(_rail_spec(1, args.cycle_s, 0))
         frames = []
@@ -523,6 +517,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if args.plots:
         per_cycle = round(args.cycle_s * 30)
         out["plots"] = _plots(Path(args.plots), rail, kfc, per_cycle)
+        out["plots"] += dense_paper.plots(Path(args.plots), figs if kfc else None, rail,
+                                          per_cycle)
     out["seconds"] = time.perf_counter() - t_start
     return out
 

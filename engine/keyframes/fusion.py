@@ -21,7 +21,7 @@ import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,7 +32,7 @@ from engine.errors import ParamsError, StudioTrackError
 from engine.frames import Frame
 from engine.geometry import invert
 from engine.keyframes.store import KeyframeStore
-from engine.params import Params, param
+from engine.params import Params, Preset, param
 
 F64 = NDArray[np.float64]
 
@@ -56,6 +56,17 @@ class FusionParams(Params):
     min_depth_m: float = param(0.3, lo=0.0, help="nearest usable depth (m)")
     max_depth_m: float = param(8.0, lo=0.1, help="farthest usable depth (m)")
     pixel_stride: int = param(1, lo=1, hi=8, help="use every n-th frame pixel in x and y (speed)")
+
+    PRESETS: ClassVar[Mapping[str, Preset]] = {
+        "paper": Preset(
+            "Tykkälä 2014 sec. 6.1, Fig. 10 as published (the fusion has no extension): "
+            "samples warped into the nearest keyframe, colour-deviation test, median inverse "
+            "depth, mean of the samples within +-delta. The paper gives no value for delta "
+            "('user-specified', depends on the sensor noise: 0.01 1/m), the colour tolerance "
+            "(20 grey levels) or the samples needed (2); every frame pixel is used",
+            delta_inv_m=0.01, color_tol=20.0, min_samples=2, pixel_stride=1,
+        ),
+    }
 
     def validate(self) -> None:
         if not self.min_depth_m < self.max_depth_m:

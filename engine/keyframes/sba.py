@@ -35,7 +35,7 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,7 +53,7 @@ from engine.keyframes.sba_residuals import (
     unpack,
 )
 from engine.keyframes.store import KeyframeStore
-from engine.params import Params, param
+from engine.params import Params, Preset, param
 
 if TYPE_CHECKING:
     from scipy.sparse import csr_matrix
@@ -105,6 +105,17 @@ class SBAParams(Params):
     min_spread_px: float = param(3.0, lo=0.0, hi=100.0,
                                  help="points of a keyframe spanning less than this across their "
                                  "main line count as collinear")
+
+    PRESETS: ClassVar[Mapping[str, Preset]] = {
+        "paper": Preset(
+            "Tykkälä 2014 sec. 6.1 as published: sparse bundle adjustment in the manner of "
+            "Lourakis' SBA [24], plain least squares of the reprojection errors (no robust "
+            "loss, no pose priors). The paper does not say how the metric scale is fixed; the "
+            "keyframes' RGB-D depth at the clicks is kept as a plain (non-robust) term, which "
+            "is how the RGB-D keyframes' 3D points enter",
+            loss="linear", robust_k=0.0, pose_prior_m=0.0, pose_prior_deg=0.0,
+        ),
+    }
 
 
 @dataclass(frozen=True, slots=True)
