@@ -16,12 +16,13 @@ from __future__ import annotations
 import math
 import string
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Slot
+from PySide6.QtCore import Qt, Slot
 from PySide6.QtWidgets import (
     QDoubleSpinBox,
     QFileDialog,
@@ -127,6 +128,17 @@ class BeaconsPage(Page):
         self.status_label = QLabel("Stopped. Drag the beacons, then Start.")
         self.status_label.setObjectName("beacons_status")
         self.status_label.setWordWrap(True)
+        self.input_label = QLabel(input_text(None, ""))
+        self.input_label.setObjectName("beacons_input")
+        self.input_label.setWordWrap(True)
+        self.input_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.input_label.setToolTip(
+            "What the run's input delivered and what it rejected, with the reason for the "
+            "newest rejection (the counters of `track --json`'s \"input\")"
+        )
+        self._input_stats: Mapping[str, object] | None = None
+        self._input_kind = ""
+        self._input_epoch = -1
 
         self.steps_spin = QSpinBox()
         self.steps_spin.setRange(10, 100000)
@@ -190,6 +202,9 @@ class BeaconsPage(Page):
         buttons.addWidget(self.stop_button)
         sl.addLayout(buttons)
         sl.addWidget(self.status_label)
+        input_box = QGroupBox("Input")
+        QVBoxLayout(input_box).addWidget(self.input_label)
+        sl.addWidget(input_box)
         sl.addWidget(layout_box)
         sl.addWidget(sim_box)
         sl.addWidget(params_box)
@@ -389,10 +404,26 @@ class BeaconsPage(Page):
         if self._running_here():
             self.run.set_params(params)  # SetParams: applies on the next step
 
-    def add_samples(self, samples: list[Any], missed: int) -> None:
-        from engine.sources.beacons import BeaconTruth
+    def _follow_input(self) -> None:
+        """A new beacon run: its own counters from now on (never the last run's)."""
+        info = self.run.run_info
+        if self._input_epoch != self._epoch and info is not None and self.follows(info):
+            self._input_epoch = self._epoch
+            self._input_stats = None
+            self._input_kind = _input_kind(info.source_spec)
+            self.input_label.setText(input_text(None, self._input_kind))
 
+    def run_changed(self, info: Any) -> None:
+        self._follow_input()
+
+    def add_samples(self, samples: list[Any], missed: int) -> None:
+        from engine.sources.beacons import BeaconTruth, RangeReadings
+
+        self._follow_input()
         for smp in samples:
+            readings = smp.payload(RangeReadings)
+            if readings is not None and readings.input_stats is not None:
+                self._input_stats = readings.input_stats  # cumulative: the newest says all
             if smp.T_world_cam is None:
                 continue
             est = (float(smp.T_world_cam[0, 3]), float(smp.T_world_cam[1, 3]))
@@ -403,6 +434,8 @@ class BeaconsPage(Page):
                 self.true_path.append(gt)
                 self.errors_m.append(math.hypot(est[0] - gt[0], est[1] - gt[1]))
             self.records_seen += 1
+        if samples:
+            self.input_label.setText(input_text(self._input_stats, self._input_kind))
 
     @Slot(str)
     def _on_failed(self, msg: str) -> None:
@@ -496,6 +529,41 @@ class BeaconsPage(Page):
                     item.setData([], [])
         if self._running_here():
             self.status_label.setText(self._summary(f"Running ({rec.result.state.value})"))
+
+
+def _input_kind(source_spec: str) -> str:
+    kind = source_spec.split(":", 1)[0].strip()
+    return kind if kind in ("beacons", "beacons-csv", "beacons-udp") else "other"
+
+
+def input_text(stats: Mapping[str, object] | None, kind: str) -> str:
+    """The input counters of a beacon run, as the CLI reports them in ``--json``'s "input"."""
+    if not kind:
+        return "No run yet."
+    if stats is None:
+        if kind == "beacons":
+            return "Simulator: readings are generated, no input to count."
+        return "Nothing received yet."
+    def n(key: str) -> int:
+        v = stats.get(key, 0)
+        return int(v) if isinstance(v, int | float) else 0
+    unit = "datagrams" if kind == "beacons-udp" else "lines"
+    lines = [f"{n('lines')} {unit} received: {n('readings')} readings in {n('steps')} steps"]
+    names = stats.get("unknown_id_names") or ()
+    unknown = f"{n('unknown_ids')} unknown ids"
+    if names and isinstance(names, list | tuple):
+        unknown += f" ({', '.join(str(x) for x in list(names)[:5])})"
+    lines.append(f"rejected: {n('malformed')} malformed, {unknown}, "
+                 f"{n('duplicates')} duplicates, {n('out_of_order')} out of order")
+    if kind == "beacons-udp":
+        clock = str(stats.get("clock") or "not yet")
+        extra = f"; {n('ignored_timestamps')} sender timestamps ignored" \
+            if n("ignored_timestamps") else ""
+        lines.append(f"{n('heartbeats')} heartbeats (nothing received); clock: {clock}{extra}")
+    last = str(stats.get("last_error") or "")
+    if last:
+        lines.append(f"last rejected: {last}")
+    return "\n".join(lines)
 
 
 def _factory(ctx: Any) -> QWidget:

@@ -142,9 +142,12 @@ class InputStats:
     clock: str = ""
     unknown_id_names: set[str] = field(default_factory=set)
     first_errors: list[str] = field(default_factory=list)
+    #: why the newest skipped input was skipped ("" while none was)
+    last_error: str = ""
 
     def note(self, kind: str, msg: str) -> None:
         setattr(self, kind, getattr(self, kind) + 1)
+        self.last_error = msg
         if len(self.first_errors) < 10:
             self.first_errors.append(msg)
 
@@ -162,6 +165,7 @@ class InputStats:
             "clock": self.clock,
             "unknown_id_names": sorted(self.unknown_id_names),
             "first_errors": list(self.first_errors),
+            "last_error": self.last_error,
         }
 
 

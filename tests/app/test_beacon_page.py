@@ -91,3 +91,62 @@ def test_layout_editing_import_export(page: BeaconsPage, tmp_path: Path) -> None
 def test_ellipse_points_radii() -> None:
     pts = ellipse_points(np.array([1.0, 2.0]), np.diag([4.0, 1.0]), n_sigma=1.0, n=4)
     np.testing.assert_allclose(np.abs(pts - [1.0, 2.0]).max(axis=0), [2.0, 1.0], atol=1e-9)
+
+
+def _free_udp_port() -> int:
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_page_shows_the_input_counters_of_a_live_udp_run(qtbot, page: BeaconsPage) -> None:  # type: ignore[no-untyped-def]
+    import json
+    import socket
+
+    from app.pages.beacons import input_text
+
+    assert page.input_label.text() == "No run yet."
+    port = _free_udp_port()
+    with qtbot.waitSignal(page.run.started, timeout=30_000):
+        page.run.start(f"beacons-udp:port={port},heartbeat=0.2", "beacon-slam",
+                       page.param_form.params, realtime=True, page="Beacons")
+
+    def dg(t: float) -> bytes:
+        return json.dumps({"timestamp_s": t, "ranges_m": {"A": 5.0 + t, "B": 6.0, "C": 7.0,
+                                                         "D": 8.0}}).encode()
+
+    sent = [dg(0.1 * i) for i in range(6)]
+    sent += [b"{not json", dg(0.2), b'{"timestamp_s": 2.0}']  # malformed, late, no ranges_m
+    sent += [dg(1.0 + 0.1 * i) for i in range(3)]
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+        for d in sent:
+            tx.sendto(d, ("127.0.0.1", port))
+
+    def shown() -> str:
+        page.display_tick()
+        return page.input_label.text()
+
+    qtbot.waitUntil(lambda: shown().startswith("12 datagrams received"), timeout=20_000)
+    text = page.input_label.text()
+    assert text.splitlines()[:2] == [
+        "12 datagrams received: 40 readings in 10 steps",
+        "rejected: 2 malformed, 0 unknown ids, 0 duplicates, 1 out of order",
+    ]
+    assert "clock: sender" in text
+    assert text.splitlines()[-1] == "last rejected: udp: malformed datagram (no 'ranges_m')"
+    with qtbot.waitSignal(page.run.finished, timeout=10_000):
+        page.stop()
+    page.display_tick()
+    after = page.input_label.text().splitlines()  # the run's counters stay after Stop
+    assert after[:2] == text.splitlines()[:2]
+    assert after[-1] == text.splitlines()[-1]
+    # the simulator has no input to count; the next run starts from its own counters
+    assert input_text(None, "beacons").startswith("Simulator")
+    page.steps_spin.setValue(10)
+    page.fps_spin.setValue(100.0)
+    with qtbot.waitSignal(page.run.finished, timeout=20_000):
+        page.start_button.click()
+    page.display_tick()
+    assert page.input_label.text().startswith("Simulator")
