@@ -50,11 +50,14 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.frames is not None and args.frames < 1:
         raise SourceError(f"--frames must be at least 1, got {args.frames}")
-    check_output_dir(args.out, error=SourceError, label="OUT", kind="TUM folder")
-    if args.format == "realsense":
+    if args.format == "realsense":  # OUT is a new .bag file, not a folder
+        from engine.persist import check_output_file
         from engine.sources.realsense_bag import check_bag_path
 
         check_bag_path(args.out)  # before rendering anything
+        check_output_file(args.out, error=SourceError, label="OUT")
+    else:
+        check_output_dir(args.out, error=SourceError, label="OUT", kind="TUM folder")
     extra = parse_options(args.options)
     opts = {
         "seed": str(args.seed),

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ipaddress
+import math
 import socket
 import threading
 import time
@@ -361,9 +362,12 @@ def parse_head_spec(text: str) -> ViscaHead:
     except ValueError:
         raise vc.ViscaError(f"head {text!r}: speeds and counts_per_deg must be numbers") \
             from None
-    if not (1 <= ps <= vc.PAN_SPEED_MAX and 1 <= ts <= vc.TILT_SPEED_MAX) or not cpd > 0:
+    if not (1 <= ps <= vc.PAN_SPEED_MAX and 1 <= ts <= vc.TILT_SPEED_MAX) \
+            or not 0 < cpd < math.inf:
         raise vc.ViscaError(f"head {text!r}: pan_speed 1..24, tilt_speed 1..20, "
-                            "counts_per_deg > 0")
+                            "counts_per_deg > 0 and finite")
+    if not 1 <= port <= 65535:
+        raise vc.ViscaError(f"VISCA port {port} is outside 1..65535")
     try:
         socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
     except (OSError, UnicodeError) as exc:

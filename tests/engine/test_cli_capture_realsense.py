@@ -78,6 +78,11 @@ def test_capture_the_built_in_studio_with_limits(
         (["capture", "{tmp}/nope.bag", "--out", "{tmp}/x"], "no such file"),
         (["demo-data", "{tmp}/x.txt", "--format", "realsense", "--frames", "2"],
          "must end in .bag"),
+        # an existing recording is kept, and the message says so (was: "expected a folder")
+        (["demo-data", "{tmp}/full/old.bag", "--format", "realsense", "--frames", "2"],
+         "old.bag: exists (will not overwrite a recording)"),
+        (["demo-data", "/proc/new.bag", "--format", "realsense", "--frames", "2"],
+         "OUT /proc/new.bag: cannot write in /proc"),
     ],
 )
 def test_capture_bad_input_is_one_line(
@@ -85,9 +90,11 @@ def test_capture_bad_input_is_one_line(
 ) -> None:
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("operator's file\n")
+    (tmp_path / "full" / "old.bag").write_bytes(b"the operator's recording")
     assert main([a.replace("{tmp}", str(tmp_path)) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1
     assert err[0].startswith("studiotrack: error:")
     assert message in err[0]
     assert (tmp_path / "full" / "keep.txt").read_text() == "operator's file\n"
+    assert (tmp_path / "full" / "old.bag").read_bytes() == b"the operator's recording"

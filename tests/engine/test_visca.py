@@ -63,6 +63,11 @@ def test_head_spec_errors_are_one_line():
         parse_head_spec("visca:127.0.0.1,speed=3")
     with pytest.raises(vc.ViscaError, match=r"pan_speed 1\.\.24"):
         parse_head_spec("visca:127.0.0.1:52381,pan_speed=99")
+    for cpd in ("inf", "1e400", "nan", "0"):  # counts_per_deg: positive and finite
+        with pytest.raises(vc.ViscaError, match="counts_per_deg > 0 and finite"):
+            parse_head_spec(f"visca:127.0.0.1,counts_per_deg={cpd}")
+    with pytest.raises(vc.ViscaError, match=r"VISCA port 99999 is outside 1\.\.65535"):
+        parse_head_spec("visca:127.0.0.1:99999")
 
 
 @pytest.fixture
