@@ -10,8 +10,10 @@ outputs' health) into a :class:`widgets.status_header.HeaderState`:
 - frames/s of the last second against the source's rate, "falling behind" when below 90 %
   or frames are pulled late; latency capture -> packet on the wire (p95) when outputs run,
   else capture -> tracker done;
-- one chip per output target: green only while its packets leave without error;
-- alarm (flashing border) on LOST, ERROR and any failing output or sink.
+- one chip per output target: green only while its packets leave without error and carry a
+  tracked pose (amber "LOST" while they hold the last good pose flagged LOST);
+- alarm (flashing border) on LOST, ERROR and any failing output or sink; while running, the
+  message line starts with ``OUTPUT FAILING: <target>: <reason>`` (the reason in words).
 """
 
 from __future__ import annotations
@@ -39,9 +41,14 @@ def _ms(x: float) -> str:
     return f"{x:.0f}" if x >= 10 else f"{x:.1f}"
 
 
-def _targets(owner: Any, status: RunStatus | None) -> tuple[tuple[HeaderTarget, ...], bool]:
-    """Output chips and whether any output or sink is failing."""
-    bad = False
+def _targets(owner: Any, status: RunStatus | None,
+             holding: bool = False) -> tuple[tuple[HeaderTarget, ...], str]:
+    """Output chips and why the first failing output or sink fails ("" when none is).
+
+    ``holding``: the outputs send the last good pose flagged LOST (tracker LOST or engine
+    error); a target sending fine then says "LOST" in amber, never a green rate.
+    """
+    bad = ""
     chips: list[HeaderTarget] = []
     health: SinkHealth | None = owner.output_health()
     if not owner.outputs_enabled:
@@ -57,11 +64,16 @@ def _targets(owner: Any, status: RunStatus | None) -> tuple[tuple[HeaderTarget, 
             text = (f"{t.rate_hz:.0f} Hz" if level == "ok" else
                     "FAILING" if level == "alarm" else "waiting")
             tip = t.name + (f": {t.message}" if t.message else f": {t.packets} packets")
+            if holding and level == "ok":
+                level, text = "waiting", f"LOST {t.rate_hz:.0f} Hz"
+                tip += " (the last good pose, flagged LOST)"
             chips.append(HeaderTarget(proto, level, text, tip))
-            bad = bad or level == "alarm"
+            if level == "alarm" and not bad:
+                bad = (t.message if t.message.startswith(t.name) else
+                       f"{t.name}: {t.message}" if t.message else f"{t.name} failing")
         if health.level is SinkLevel.FAILED:
             chips.append(HeaderTarget("outputs", "alarm", "FAILED", health.message))
-            bad = True
+            bad = bad or health.message or "pose outputs failed"
     if status is not None:
         for h in status.sinks:
             if h.name == "pose outputs":
@@ -76,7 +88,7 @@ def _targets(owner: Any, status: RunStatus | None) -> tuple[tuple[HeaderTarget, 
                 continue
             if h.level.is_bad:
                 chips.append(HeaderTarget(h.name, "alarm", h.level.value, h.message))
-                bad = True
+                bad = bad or (f"{h.name}: {h.message}" if h.message else f"{h.name} failing")
             elif h.name == "recorder":
                 n = int(h.counters.get("frames", 0))
                 level = "ok" if h.level is SinkLevel.OK else "waiting"
@@ -97,13 +109,13 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
                                alarm=True)
         if req is None:
             return HeaderState(IDLE.state, IDLE.title, IDLE.message, targets=chips,
-                               alarm=failing)
+                               alarm=bool(failing))
         last = f"last run: {req.tracker} on {req.source_spec}"
         if status is not None:
             last += f", {status.frames} frames"
             if status.error:
                 last += f", ended by {status.error}"
-        return HeaderState("STOPPED", "no run", last, targets=chips, alarm=failing)
+        return HeaderState("STOPPED", "no run", last, targets=chips, alarm=bool(failing))
     info = status.info if status is not None else None
     title = (f"{info.tracker_name} · {info.source_name}" if info is not None
              else f"{req.tracker} · {req.source_spec}" if req is not None else "")
@@ -111,7 +123,7 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
         title += f"  ({req.page})"
     if status is None or status.phase is RunPhase.STARTING:
         return HeaderState("STARTING", title, "opening the source and the tracker",
-                           targets=chips, alarm=failing)
+                           targets=chips, alarm=bool(failing))
     fps = f"{status.fps:5.1f} fps" + (f" / {status.target_fps:.2f}" if status.target_fps
                                       else "")
     lat = "latency –"
@@ -121,12 +133,13 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
     elif status.capture_to_done is not None:
         lat = f"capture→tracked p95 {_ms(status.capture_to_done.p95_ms)} ms"
     if status.phase is RunPhase.FAULT:
+        chips, _ = _targets(owner, status, holding=True)
         return HeaderState("ERROR", title, f"{status.error} — outputs hold the last pose, "
                            "flagged LOST; press Stop", fps_text="–", latency_text=lat,
                            targets=chips, timecode=status.timecode or "", alarm=True)
     if status.state is None:
         return HeaderState("STARTING", title, "waiting for the first frame", fps, False, lat,
-                           chips, alarm=failing)
+                           chips, alarm=bool(failing))
     period = 1.0 / status.target_fps if status.target_fps else 0.0
     age = now - status.last_record_mono_s if status.last_record_mono_s else 0.0
     state = status.state.value
@@ -134,5 +147,9 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
     if age > max(STALL_S, 5 * period):
         state, message = "LOST", f"no frame for {age:.1f} s (engine stalled)"
     lost = state == "LOST"
+    if lost:
+        chips, failing = _targets(owner, status, holding=True)
+    if failing:  # what the render engine does not get is said first, in words
+        message = f"OUTPUT FAILING: {failing}" + (f" · {message}" if message else "")
     return HeaderState(state, title, message, fps, status.falling_behind, lat, chips,
-                       timecode=status.timecode or "", alarm=lost or failing)
+                       timecode=status.timecode or "", alarm=lost or bool(failing))

@@ -35,6 +35,7 @@ from PySide6.QtWidgets import QSizePolicy, QWidget
 
 XYWH = tuple[float, float, float, float]
 MAIN_COLOUR = QColor("#2ecc71")
+LOST_COLOUR = QColor("#ff4d4f")
 PATCH_COLOURS = ("#4cc3ff", "#ff7ad9", "#ffd24c", "#9dff4c", "#ff8c42", "#b28dff")
 HANDLE_PX = 9.0
 MIN_DRAG_PX = 3.0
@@ -70,6 +71,7 @@ class PatchCanvas(QWidget):
         self._rubber: XYWH | None = None
         # live overlay
         self.overlay_boxes: list[tuple[XYWH, str]] = []
+        self.overlay_lost = False
         self.crosshair: tuple[float, float] | None = None
         self.target: tuple[float, float] | None = None
         self.particles: NDArray[np.float32] | None = None
@@ -256,7 +258,10 @@ class PatchCanvas(QWidget):
     # ---------------------------------------------------------------- live overlay
     def set_live(self, boxes: list[tuple[XYWH, str]], crosshair: tuple[float, float] | None,
                  particles: NDArray[np.float32] | None, weights: NDArray[np.float32] | None,
-                 target: tuple[float, float] | None = None) -> None:
+                 target: tuple[float, float] | None = None, lost: bool = False) -> None:
+        """The live overlay; ``lost``: the boxes are the last estimate of a LOST tracker
+        (drawn dashed in the alarm colour, the main box labelled so), never as a lock."""
+        self.overlay_lost = lost
         self.overlay_boxes = boxes
         self.crosshair = crosshair
         self.particles = particles
@@ -285,11 +290,18 @@ class PatchCanvas(QWidget):
                 p.setBrush(QBrush(c))
                 p.drawRect(QRectF(ox + s * u - 1.5, oy + s * v - 1.5, 3.0, 3.0))
         p.setBrush(Qt.BrushStyle.NoBrush)
+        lost = self.overlay_lost
         for k, (box, label) in enumerate(self.overlay_boxes):
-            colour = MAIN_COLOUR if k == 0 else QColor(PATCH_COLOURS[(k - 1) % len(PATCH_COLOURS)])
-            p.setPen(QPen(colour, 2 if k == 0 else 1))
+            if lost and k > 0:
+                continue  # the patches of a lost box locate nothing: only the held box
+            colour = (LOST_COLOUR if lost else MAIN_COLOUR if k == 0
+                      else QColor(PATCH_COLOURS[(k - 1) % len(PATCH_COLOURS)]))
+            p.setPen(QPen(colour, 2 if k == 0 else 1,
+                          Qt.PenStyle.DashLine if lost else Qt.PenStyle.SolidLine))
             r = self._wrect(box)
             p.drawRect(r)
+            if lost:
+                label = f"{label}: LOST (last estimate)"
             # the presenter's label above the box, patch labels inside: never on top of
             # each other
             self._label(p, r.topLeft() + (QPointF(0, -2) if k == 0 else QPointF(2, 2)),

@@ -28,6 +28,8 @@ STATE_COLOURS = {
 }
 LEVEL_COLOURS = {"ok": "#1f9d55", "waiting": "#8a6d1f", "alarm": "#d63031", "off": "#3a3f48"}
 ALARM_COLOUR = "#ff4d4f"
+MESSAGE_COLOUR = "#b9bec7"
+ALARM_MESSAGE_COLOUR = "#ff8a8a"
 FLASH_MS = 400
 
 
@@ -98,7 +100,7 @@ class StatusHeader(QFrame):
         self.title_label.setStyleSheet("font-weight: bold; font-size: 12pt; color: #e6e9ee;")
         self.message_label = _ElidedLabel()
         self.message_label.setObjectName("header_message")
-        self.message_label.setStyleSheet("color: #b9bec7;")
+        self.message_label.setStyleSheet(f"color: {MESSAGE_COLOUR};")
         for lab in (self.title_label, self.message_label):
             lab.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         mid = QVBoxLayout()
@@ -153,6 +155,9 @@ class StatusHeader(QFrame):
         self.title_label.setToolTip(st.title)
         self.message_label.setText(st.message)
         self.message_label.setToolTip(st.message)
+        self.message_label.setStyleSheet(  # an alarm's reason reads as one
+            f"color: {ALARM_MESSAGE_COLOUR}; font-weight: bold;" if st.alarm
+            else f"color: {MESSAGE_COLOUR};")
         fps_colour = "#ffb020" if st.behind else "#e6e9ee"
         self.fps_label.setText(st.fps_text + ("  falling behind" if st.behind else ""))
         self.fps_label.setStyleSheet(f"font-family: monospace; color: {fps_colour};"

@@ -9,7 +9,10 @@ hands a run page what is new since it last drew:
 - :meth:`Page.draw` - the newest record, once per new record;
 - :meth:`Page.refresh` - every tick (or every ``refresh_interval_s``), for read-outs that are
   not per record (run state, health);
-- :meth:`Page.run_changed` - a new run started (clear plots), and :meth:`Page.run_ended`.
+- :meth:`Page.run_changed` - a new run started (clear plots), and :meth:`Page.run_ended`;
+- :meth:`Page.run_faulted` - once, when the engine raised mid-run (the run stays open, the
+  outputs hold the last pose flagged LOST, no record follows): the page says ERROR and never
+  leaves the last record looking live.
 
 ``follows(info)`` says whether the page shows a run (default: any; a tracker's page: runs
 of its trackers). A page never keeps engine objects of its own: it asks ``ctx.run``.
@@ -23,7 +26,7 @@ from typing import Any
 from PySide6.QtWidgets import QWidget
 
 from engine.loop import FrameRecord
-from engine.pipeline import RunInfo, RunStatus, TraceSample
+from engine.pipeline import RunInfo, RunPhase, RunStatus, TraceSample
 
 DISPLAY_HZ = 30
 
@@ -44,6 +47,7 @@ class Page(QWidget):
         self._drawn_seq: int | None = None
         self._next_refresh = 0.0
         self._was_running = False
+        self._faulted = False
         self.draws = 0  # records drawn (tests, benches)
 
     # ------------------------------------------------------------- overridables
@@ -57,6 +61,9 @@ class Page(QWidget):
 
     def run_ended(self, status: RunStatus | None) -> None:
         """The run this page showed ended: clear live read-outs, keep what is history."""
+
+    def run_faulted(self, status: RunStatus | None) -> None:
+        """The engine raised mid-run (``status.error`` says what); the run is still open."""
 
     def add_samples(self, samples: list[TraceSample], missed: int) -> None:
         """Every processed frame's numbers since the last tick (``missed``: beyond the
@@ -77,6 +84,7 @@ class Page(QWidget):
                 self._epoch = run.epoch
                 self._cursor = 0
                 self._drawn_seq = None
+                self._faulted = False
                 self._next_refresh = 0.0  # read-outs follow a run change at once
                 self.run_changed(run.run_info)
             running = run.is_running
@@ -90,6 +98,11 @@ class Page(QWidget):
                     self._drawn_seq = rec.seq
                     self.draws += 1
                     self.draw(rec)
+                p = run.pipeline if running else None
+                if not self._faulted and p is not None and p.phase is RunPhase.FAULT:
+                    self._faulted = True  # after the last draw: the page ends on ERROR
+                    self._next_refresh = 0.0
+                    self.run_faulted(run.status())
             if self._was_running != running:
                 self._next_refresh = 0.0  # read-outs follow start/stop at once
             if self._was_running and not running:

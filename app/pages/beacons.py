@@ -448,6 +448,12 @@ class BeaconsPage(Page):
     def _on_finished(self, status: Any) -> None:
         self.run_ended(status)
 
+    def run_faulted(self, status: Any) -> None:
+        error = getattr(status, "error", None) or self.run.last_error or "engine error"
+        # the engine already logged it: the page only says so
+        self.status_label.setText(f"ERROR: {error} — not tracking; press Stop")
+        self._update_buttons()
+
     def run_ended(self, status: Any) -> None:
         self._update_buttons()
         if self._latest is not None or self.errors_m:

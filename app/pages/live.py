@@ -507,6 +507,20 @@ class LivePage(Page):
             self.image_view.set_info(f"stopped after {frames} frames: the last frame shown")
         self._update_controls()
 
+    def run_faulted(self, status: RunStatus | None) -> None:
+        """The engine raised: ERROR, the reason, the last frame marked as not live."""
+        error = (status.error if status is not None else None) or self.run.last_error or ""
+        self.status_light.set_state(None, "ERROR")
+        self.error_label.setText(error)
+        self.error_label.setToolTip(error)
+        self.error_label.setVisible(bool(error))
+        for key in ("fps", "latency"):
+            self.readouts[key].setText("–")
+        self.image_view.set_overlay(None, None)
+        self.image_view.set_info("engine error: the last frame before it, not live; "
+                                 "outputs hold it flagged LOST — press Stop")
+        self._update_controls()
+
     def follows(self, info: RunInfo | None) -> bool:
         return info is not None  # the Live page shows every run
 

@@ -58,6 +58,7 @@ from PySide6.QtWidgets import (
 
 from app.pages import PageSpec
 from app.pages._base import Page
+from engine.results import TrackState
 from widgets.param_form import ParamForm
 from widgets.patch_canvas import PATCH_COLOURS, PatchCanvas
 from widgets.status_light import StatusLight
@@ -843,6 +844,16 @@ class PresenterPage(Page):
         self.canvas.update()
         self._update_buttons()
 
+    def run_faulted(self, status: Any) -> None:
+        """The engine raised: ERROR; the held box goes (it is not live), the reason shows."""
+        error = getattr(status, "error", None) or self.run.last_error or "engine error"
+        self.canvas.set_live([], None, None, None, None)
+        self.over_canvas.set_live([], None, None, None, None)
+        self.light.set_state(None, "ERROR")
+        self.readout.setText(f"⚠ {error}\nnot tracking: the outputs hold the last position "
+                             "flagged LOST — press Stop")
+        self._update_buttons()
+
     def run_changed(self, info: Any) -> None:
         self._update_buttons()
 
@@ -899,7 +910,8 @@ class PresenterPage(Page):
         cmd = ex.control if ex is not None else None
         if cmd is not None:
             target = (cmd.target_x_px, cmd.target_y_px)
-        self.canvas.set_live(boxes, cross, parts, weights, target)
+        self.canvas.set_live(boxes, cross, parts, weights, target,
+                             lost=res.state is TrackState.LOST)
         self._draw_overhead(rec, ex)
         self.light.set_state(res.state)
         st = self.run.status()

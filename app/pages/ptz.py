@@ -613,6 +613,17 @@ class LivePanel(QWidget):
         if self.run.is_running and info is not None and info.tracker_name == "ptz":
             self.run.set_params(params)
 
+    def run_faulted(self, status: Any) -> None:
+        """The engine raised: the live markers go (not live), the read-out says why."""
+        self._latest = None
+        for it in (*self.snake_items, self.final_contour):
+            it.setData([], [])
+        self.centre.setData([], [])
+        self.pred.setData([], [])
+        error = getattr(status, "error", None) or self.run.last_error or "engine error"
+        self.readout.setText(f"⚠ ERROR: {error} — the head holds; press Stop")
+        self.update_buttons()
+
     def run_ended(self) -> None:
         """Nothing stale after Stop: the live markers and the read-out clear."""
         self._latest = None
@@ -866,6 +877,9 @@ class PtzPage(Page):
     # the page base calls these; the Live tab draws them (calibration tabs need no clock)
     def run_changed(self, info: Any) -> None:
         self.live.update_buttons()
+
+    def run_faulted(self, status: Any) -> None:
+        self.live.run_faulted(status)
 
     def add_samples(self, samples: list[Any], missed: int) -> None:
         self.live.add_samples(samples, missed)

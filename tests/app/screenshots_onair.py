@@ -19,6 +19,22 @@ STUDIO = "synthetic:frames=100000,width=320,height=240,presenter=0,path=rail"
 COVERED = STUDIO + ",cover_start=40,cover_frames=100000"
 
 
+class _FailsAt:
+    """A tracker that raises at frame ``n`` (an engine exception mid-show)."""
+
+    def __init__(self, inner, n: int) -> None:  # type: ignore[no-untyped-def]
+        self._inner, self._n, self._k = inner, n, 0
+
+    def __getattr__(self, name: str):  # type: ignore[no-untyped-def]
+        return getattr(self._inner, name)
+
+    def track(self, frame):  # type: ignore[no-untyped-def]
+        self._k += 1
+        if self._k >= self._n:
+            raise RuntimeError(f"injected engine failure at frame {self._k - 1}")
+        return self._inner.track(frame)
+
+
 def main() -> None:
     from PySide6.QtCore import QEventLoop, QSettings, QTimer
 
@@ -26,9 +42,12 @@ def main() -> None:
     from app.context import AppContext
     from app.main import create_application
     from app.main_window import MainWindow
+    from app.run_owner import RunRequest
     from engine.outputs.sender import OutputConfig, TargetSpec
+    from engine.pipeline import RunPhase
     from engine.presenter.model import auto_patches
     from engine.sources import open_source
+    from engine.trackers import create_tracker
 
     create_application()
     tmp = tempfile.mkdtemp(prefix="studiotrack_shots_")
@@ -105,12 +124,22 @@ def main() -> None:
     run_owner.check_targets = lambda cfg: None  # type: ignore[assignment]
     ctx.run.apply_outputs(OutputConfig(targets=(
         TargetSpec("freed", "192.0.2.1", 40000, bind_host="127.0.0.1"),
-        TargetSpec("opentrackio", "127.0.0.1", 55555))))
+        TargetSpec("opentrackio", "127.0.0.1", 55555, bind_host="127.0.0.1"))))
     ctx.run.set_outputs_enabled(True)
     for page in pages:
         start_for(page)
         pump(1.5)
         shoot(page, "output_failure")
+    # ERROR: the engine raises mid-show (outputs on: they hold the last pose flagged LOST)
+    ctx.run.stop()
+    ctx.run.apply_outputs(OutputConfig(targets=(
+        TargetSpec("freed", "127.0.0.1", 40000, bind_host="127.0.0.1"),
+        TargetSpec("opentrackio", "127.0.0.1", 55555, bind_host="127.0.0.1"))))
+    ctx.run.start(RunRequest(STUDIO, "dense", page="Live",
+                             tracker_factory=lambda: _FailsAt(create_tracker("dense"), 30)))
+    wait(lambda: ctx.run.pipeline is not None and ctx.run.pipeline.phase is RunPhase.FAULT)
+    for page in pages:
+        shoot(page, "error")
     ctx.run.set_outputs_enabled(False)
     run_owner.check_targets = real_check  # type: ignore[assignment]
     # STOPPED

@@ -213,3 +213,61 @@ def test_nothing_says_tracking_on_any_page_after_stop(qtbot, window, live) -> No
         assert window.header.state.fps_text == "–"
     ops = window.page("Operations")
     assert ops.values["fps"].text() == "–"
+
+
+@pytest.mark.parametrize("tracker", ["dense", "presenter", "ptz", "beacon-slam"])
+def test_an_engine_error_says_error_on_its_page_never_tracking(qtbot, window, tracker) -> None:  # type: ignore[no-untyped-def]
+    """The engine raises mid-run on the page that drives the tracker: the run stays open
+    (outputs hold LOST) and that page, like the header, says ERROR; nothing there still says
+    TRACKING, the output chip says LOST instead of a green rate."""
+    import dataclasses
+
+    from PySide6.QtWidgets import QLabel
+
+    from app.pages import page_for_tracker
+    from app.run_owner import RunRequest
+    from engine.pipeline import RunPhase
+    from tests.app.fakes import FakeParams, FakeTracker
+    from widgets.status_light import StatusLight
+
+    def texts(page) -> list[str]:  # type: ignore[no-untyped-def]
+        out = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
+        out += [s.text for s in page.findChildren(StatusLight)]
+        return out
+
+    def failing() -> FakeTracker:
+        t = FakeTracker(dataclasses.replace(FakeParams(), fail_at_frame=15))
+        t.name = tracker  # the page of that tracker follows the run
+        return t
+
+    rx = _rx()
+    run = window.ctx.run
+    run.apply_outputs(OutputConfig(targets=(TargetSpec("opentrackio", "127.0.0.1",
+                                                       rx.getsockname()[1]),)))
+    run.set_outputs_enabled(True)
+    spec = page_for_tracker(tracker)
+    title = spec.title if spec is not None else "Live"
+    window.show_page(title)
+    page = window.page(title)
+    try:
+        with qtbot.waitSignal(run.started, timeout=30_000):
+            run.start(RunRequest(SMALL_STUDIO, tracker, page=title, tracker_factory=failing))
+        qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
+                                 page.draws > 0)[1], timeout=30_000)
+        qtbot.waitUntil(lambda: run.pipeline is not None
+                        and run.pipeline.phase is RunPhase.FAULT, timeout=30_000)
+        for _ in range(4):
+            window.display_tick(force_header=True)
+            qtbot.wait(30)
+        shown = texts(page)
+        header = window.header.state
+    finally:
+        run.stop()
+        run.set_outputs_enabled(False)
+        rx.close()
+    assert header.state == "ERROR"
+    assert header.targets
+    assert all(t.text.startswith("LOST") and t.level == "waiting" for t in header.targets), \
+        header.targets
+    assert not [t for t in shown if "TRACKING" in t], (title, shown)
+    assert any("ERROR" in t or "injected failure" in t for t in shown), (title, shown)

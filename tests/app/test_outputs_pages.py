@@ -171,6 +171,9 @@ def test_unreachable_target_is_an_alarm_never_a_silent_counter(qtbot, ctx, monke
     [chip] = head.targets
     assert chip.level == "alarm"
     assert "FAILING" in chip.text
+    # the header says in words what the render engine does not get, not only a red chip
+    assert head.message.startswith("OUTPUT FAILING: freed:192.0.2.1:40000")
+    assert "\n" not in head.message
     assert status_text.startswith("FAILING")
 
 
