@@ -13,7 +13,7 @@ outputs' health) into a :class:`widgets.status_header.HeaderState`:
 - one chip per output target: green only while its packets leave without error and carry a
   tracked pose (amber "LOST" while they hold the last good pose flagged LOST);
 - alarm (flashing border) on LOST, ERROR and any failing output or sink; while running, the
-  message line starts with ``OUTPUT FAILING: <target>: <reason>`` (the reason in words).
+  message line starts with what fails, in words (``OUTPUT FAILING: <target>: <reason>``).
 """
 
 from __future__ import annotations
@@ -43,7 +43,8 @@ def _ms(x: float) -> str:
 
 def _targets(owner: Any, status: RunStatus | None,
              holding: bool = False) -> tuple[tuple[HeaderTarget, ...], str]:
-    """Output chips and why the first failing output or sink fails ("" when none is).
+    """Output chips and, in words, the first failing output or sink ("" when none is):
+    ``OUTPUT FAILING: <target>: <reason>``, ``HEAD OFFLINE: ...``, ``<SINK> FAILING: ...``.
 
     ``holding``: the outputs send the last good pose flagged LOST (tracker LOST or engine
     error); a target sending fine then says "LOST" in amber, never a green rate.
@@ -69,11 +70,12 @@ def _targets(owner: Any, status: RunStatus | None,
                 tip += " (the last good pose, flagged LOST)"
             chips.append(HeaderTarget(proto, level, text, tip))
             if level == "alarm" and not bad:
-                bad = (t.message if t.message.startswith(t.name) else
+                why = (t.message if t.message.startswith(t.name) else
                        f"{t.name}: {t.message}" if t.message else f"{t.name} failing")
+                bad = f"OUTPUT FAILING: {why}"
         if health.level is SinkLevel.FAILED:
             chips.append(HeaderTarget("outputs", "alarm", "FAILED", health.message))
-            bad = bad or health.message or "pose outputs failed"
+            bad = bad or f"OUTPUT FAILING: {health.message or 'pose outputs failed'}"
     if status is not None:
         for h in status.sinks:
             if h.name == "pose outputs":
@@ -84,11 +86,13 @@ def _targets(owner: Any, status: RunStatus | None,
                                           "ok" if h.level is SinkLevel.OK else "waiting",
                                           "OFFLINE" if bad_head else h.level.value,
                                           f"{h.name}: {h.message}"))
-                bad = bad or bad_head
+                if bad_head and not bad:
+                    bad = f"HEAD OFFLINE: {h.message}" if h.message else "HEAD OFFLINE"
                 continue
             if h.level.is_bad:
                 chips.append(HeaderTarget(h.name, "alarm", h.level.value, h.message))
-                bad = bad or (f"{h.name}: {h.message}" if h.message else f"{h.name} failing")
+                bad = bad or (f"{h.name.upper()} FAILING" + (f": {h.message}" if h.message
+                                                              else ""))
             elif h.name == "recorder":
                 n = int(h.counters.get("frames", 0))
                 level = "ok" if h.level is SinkLevel.OK else "waiting"
@@ -150,6 +154,6 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
     if lost:
         chips, failing = _targets(owner, status, holding=True)
     if failing:  # what the render engine does not get is said first, in words
-        message = f"OUTPUT FAILING: {failing}" + (f" · {message}" if message else "")
+        message = failing + (f" · {message}" if message else "")
     return HeaderState(state, title, message, fps, status.falling_behind, lat, chips,
                        timecode=status.timecode or "", alarm=lost or bool(failing))
