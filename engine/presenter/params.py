@@ -9,6 +9,7 @@ from typing import ClassVar
 from engine.params import Params, Preset, param
 
 LOSS_TESTS = ("contrast", "likelihood")
+LOSS_REFERENCES = ("first", "anchored")
 
 #: the VR-TV paper's filter as published (Sec. III-C): a pure random walk in (x, y, h) (eq. 1;
 #: the paper gives no covariances: the default x/y ones and a scale std of 1.5 % of h per
@@ -98,6 +99,15 @@ class PresenterParams(Params):
                                     "quantile of the sampled background boxes' colour distance "
                                     "(0.1 = the most presenter-like tenth: the desk, a similar "
                                     "wall; 0.5 = typical background)")
+    loss_reference: str = param("first", choices=LOSS_REFERENCES,
+                                help="contrast loss test: the colours the patches are compared "
+                                "with: 'first' = the first frame's patches, 'anchored' = the "
+                                "tracking model (model_anchor x first + the rest adapted)")
+    loss_bg_weighting: float = param(1.0, lo=0.0, hi=2.0, step=0.25,
+                                     help="contrast loss test: its reference's bins scaled by "
+                                     "min(1, o*/o_b)^this, o = colours of a ring around the "
+                                     "first box (as bg_weighting): what the set around the "
+                                     "presenter shows does not count as the presenter; 0 = off")
     loss_percent: float = param(0.1, lo=0.0, hi=100.0, step=0.01,
                                 help="likelihood loss test: loss when P(z_col|s) < Pmin = this "
                                 "% of Pref, i.e. sum B^2 worse than the reference by "

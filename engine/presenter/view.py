@@ -13,8 +13,10 @@ Per frame (VR-TV paper, Fig. 5):
    that then follows P slowly while P >= 60 % of it. The default (``'contrast'``) asks
    whether the estimate still looks like the *first frame's* patches rather than like the
    background: per patch z_p = (B_p^2(s_t) - mu_p) / (beta_p - mu_p), with B_p^2 against the
-   anchored model (its first-frame share keeps a tracker that slid onto the desk from
-   matching), mu_p the target's own level (median over the first tracked frames, then slowly
+   first frame's patch histograms (``loss_reference``; the adapted model can follow a tracker
+   that slid onto the desk), the colours common in a ring around the first box scaled down
+   (``loss_bg_weighting``: a patch split from a bare box is much wall and desk, and a
+   reference of wall and desk matches the empty set), mu_p the target's own level (median over the first tracked frames, then slowly
    adapted while z is small) and beta_p the level of the most target-like tenth of boxes
    sampled over this frame's background (the desk, a similar wall), and z the median over
    the patches. z = 0 is the target, 1 the best background; LOST while z > ``loss_contrast``.
@@ -316,8 +318,15 @@ class ViewTracker:
         """sqrt of the reference histograms: anchored blend, then background weights."""
         p = self.params
         ref = p.model_anchor * self._hist0 + (1.0 - p.model_anchor) * self._hist_adapt
-        # the loss test's reference: the anchored model without background weighting
-        self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(ref))
+        # the loss test's reference: the first frame's patches (or the anchored model), with
+        # the colours common around the first box scaled down - a box-split patch is much
+        # background (the wall beside the head, the desk between the legs), and a reference
+        # made of background matches an empty set
+        loss_ref = self._hist0 if p.loss_reference == "first" else ref
+        if self._bin_w is not None and p.loss_bg_weighting > 0:
+            loss_ref = loss_ref * self._bin_w ** p.loss_bg_weighting
+            loss_ref = loss_ref / np.maximum(loss_ref.sum(axis=1, keepdims=True), 1e-12)
+        self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(loss_ref))
         if self._bin_w is not None and p.bg_weighting > 0:
             ref = ref * self._bin_w ** p.bg_weighting
             ref /= np.maximum(ref.sum(axis=1, keepdims=True), 1e-12)
@@ -354,7 +363,7 @@ class ViewTracker:
             timings["motion_ms"] = (time.perf_counter() - t0) * 1000.0
         self._gains = grey_world_gains(bgr) if self.model.grey_world else None
         first = len(self.particles) == 0
-        if first and p.bg_weighting > 0:
+        if first and (p.bg_weighting > 0 or p.loss_bg_weighting > 0):
             self._background_weights(bgr)
         h_ref = float(self.last_good_xyh[2])
         t0 = time.perf_counter()

@@ -72,9 +72,15 @@ def test_background_weights_down_weight_ring_colours_only() -> None:
     blue = int(np.argmax(direct_histogram(hsv, (150, 185, 10, 10), 10)))
     assert w[red] < 0.1
     assert w[blue] > 5 * w[red]  # the legs' blue is not around the box
-    off = _tracker(img, bg_weighting=0.0)
+    off = _tracker(img, bg_weighting=0.0, loss_bg_weighting=0.0)
     off.step(img)
     assert off._bin_w is None
+    # the loss test's reference alone: the ring's red counts less there, not in the tracking
+    loss_only = _tracker(img, bg_weighting=0.0, loss_bg_weighting=1.0)
+    loss_only.step(img)
+    assert loss_only._bin_w is not None
+    assert not np.allclose(loss_only._sqrt_ref0, loss_only._sqrt_ref)
+    assert np.allclose(loss_only._sqrt_ref, off._sqrt_ref)
 
 
 def test_model_update_is_anchored_and_guarded() -> None:

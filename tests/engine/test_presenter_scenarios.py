@@ -42,3 +42,35 @@ def test_desk_walk_two_view_and_robot_report_their_keys(monkeypatch: pytest.Monk
     assert rb["frames"] == 20
     assert sc.meets_loss_goals(desk, walk) == (desk["frames_to_reacquire"] is not None
                                                and desk["frames_to_reacquire"] <= 15)
+
+
+#: a presenter in white beside the desk in bright light, 320x240: with the loss test against
+#: the adapted model and the set's colours counted, a box-split model sits on the empty set
+#: claiming TRACKING for ~75 frames
+EMPTY_SET_TRAP = ("synthetic:frames={n},presenter=1,path=static,seed=45,presenter_look=5,"
+                  "lighting=bright,presenter_mode=leave,presenter_x=0.5,presenter_out=-2.4,"
+                  "presenter_leave=30,presenter_return=150,width=320,height=240")
+
+
+def test_box_split_model_never_claims_tracking_on_the_empty_set(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from engine.presenter.params import PresenterParams
+
+    monkeypatch.setitem(sc.DESK, "trap", EMPTY_SET_TRAP)
+    monkeypatch.setitem(sc.N_FRAMES, "desk", 200)
+
+    def runner(**changes: Any) -> Any:
+        def run(frames: list[Frame]) -> list[Any]:
+            p = PresenterParams(use_part_boxes=False, **changes)
+            t = create_tracker("presenter", p)
+            return [t.track(f) for f in frames]
+        return run
+
+    desk = sc.desk_loss(runner(), "trap")
+    assert desk["frames_to_detect"] is not None
+    assert desk["frames_to_detect"] <= sc.DETECT_GOAL_FRAMES
+    assert desk["false_lock_frames"] == 0
+    # the trap is real: the former loss reference (the adapted model, the set's colours
+    # counted) is fooled by it
+    old = sc.desk_loss(runner(loss_reference="anchored", loss_bg_weighting=0.0), "trap")
+    assert old["false_lock_frames"] > 20
