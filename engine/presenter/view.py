@@ -16,10 +16,11 @@ Per frame (VR-TV paper, Fig. 5):
    first frame's patch histograms (``loss_reference``; the adapted model can follow a tracker
    that slid onto the desk), the colours common in a ring around the first box scaled down
    (``loss_bg_weighting``: a patch split from a bare box is much wall and desk, and a
-   reference of wall and desk matches the empty set), mu_p the target's own level (median over the first tracked frames, then slowly
-   adapted while z is small) and beta_p the level of the most target-like tenth of boxes
-   sampled over this frame's background (the desk, a similar wall), and z the median over
-   the patches. z = 0 is the target, 1 the best background; LOST while z > ``loss_contrast``.
+   reference of wall and desk matches the empty set), mu_p the target's own level (median
+   over the first tracked frames, then slowly adapted while z is small) and beta_p the
+   level of the most target-like tenth of boxes sampled over this frame's background (the
+   desk, a similar wall), and z the median over the patches. z = 0 is the target, 1 the
+   best background; LOST while z > ``loss_contrast``.
    While LOST the output holds the last good position and the filter searches with a
    diffuse prior of ``reinit_particles`` particles (half fresh every frame, half resampled
    from the last search) until the test passes again at the search's best hypothesis for
