@@ -239,6 +239,7 @@ class PresenterPage(Page):
         self.readout = QLabel("Not tracking.")
         self.readout.setObjectName("readout")
         self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.readout.setWordWrap(True)  # a narrow panel wraps, never clips a number
         self.control_label = QLabel("Robot-camera control: shown while tracking.")
         self.control_label.setToolTip(
             "e_f: framing error of the presenter in the image (px); e_d: distance error from "
@@ -259,14 +260,14 @@ class PresenterPage(Page):
         self.pref_curve = self.p_plot.plot(pen=pg.mkPen("#4cc3ff", style=Qt.PenStyle.DashLine),
                                            name="Pref")
         self.z_plot = pg.PlotWidget(title="Loss test z")
-        self.z_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=2)
+        self.z_plot.addLegend(offset=(5, 5), labelTextSize="8pt", colCount=2)
         self.z_plot.setToolTip("z: the patches' colour distance from the model, 0 = the "
                                "presenter's own level, 1 = the most presenter-like "
                                "background; LOST while z is above the threshold")
         self.z_curve = self.z_plot.plot(pen=pg.mkPen("#2ecc71", width=2), name="z")
         self.z_over = self.z_plot.plot(pen=pg.mkPen("#b28dff", width=1), name="z overhead")
-        self.zmax_curve = self.z_plot.plot(pen=pg.mkPen("#ff4d4f", style=Qt.PenStyle.DashLine),
-                                           name="LOST above")
+        # the threshold is named in the title (a third legend entry does not fit a narrow plot)
+        self.zmax_curve = self.z_plot.plot(pen=pg.mkPen("#ff4d4f", style=Qt.PenStyle.DashLine))
         self.z_plot.setYRange(-0.5, 1.5)
         self.xy_plot = pg.PlotWidget(title="Image position")
         self.xy_plot.addLegend(offset=(-5, 5), labelTextSize="8pt", colCount=2)
@@ -496,7 +497,8 @@ class PresenterPage(Page):
         for i, (spec, hist) in enumerate(zip(model.patches, model.hists, strict=True)):
             tile = HistogramTile(spec.name, hist, model.n_bins,
                                  PATCH_COLOURS[i % len(PATCH_COLOURS)])
-            self.hist_layout.insertWidget(self.hist_layout.count() - 1, tile)
+            self.hist_layout.insertWidget(self.hist_layout.count() - 1, tile,
+                                          alignment=Qt.AlignmentFlag.AlignTop)
 
     @Slot()
     def _on_rects_changed(self) -> None:
@@ -952,6 +954,8 @@ class PresenterPage(Page):
             self.z_over.setData(t[okz], xy[okz, 6])
             thr = self.form.params.loss_contrast
             self.zmax_curve.setData([t[0], t[-1]], [thr, thr])
+            # short: a long title widens the plot beyond its slot
+            self.z_plot.setTitle(f"Loss test z, LOST > {thr:.2f}")
             self.d_plot.setTitle("Floor distance d" if ok.any() else "d: no second view")
 
 
@@ -971,8 +975,8 @@ class PresenterPage(Page):
             d = "-" if ex.d_m is None else f"{ex.d_m:.2f} m"
             lines.append(f"floor ({ex.floor_xy_m[0]:+.2f}, {ex.floor_xy_m[1]:+.2f}) m   "
                          f"height {h}   d {d}")
-        lines.append(f"particles {ex.n_particles}   lost frames {ex.lost_frames}   "
-                     f"jitter lag {ex.lag_s:.2f} s   {fps:.0f} fps")
+        lines.append(f"particles {ex.n_particles}   lost frames {ex.lost_frames}")
+        lines.append(f"jitter lag {ex.lag_s:.2f} s   {fps:.0f} fps")
         return "\n".join(lines)
 
     def _draw_overhead(self, rec: Any, ex: Any) -> None:

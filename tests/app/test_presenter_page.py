@@ -163,3 +163,44 @@ def test_two_views_floor_calibration_and_distance(qtbot, ctx) -> None:  # type: 
     with qtbot.waitSignal(page.run.finished, timeout=20000):
         page.stop_tracking()
     assert page.over_canvas.overlay_boxes == []
+
+
+COVERED = ("synthetic:frames=80,width=160,height=120,seed=3,presenter=1,path=static,"
+           "cover_start=20,cover_frames=100")
+
+
+def test_lost_shows_only_the_last_position_dashed(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
+    from app.pages.presenter import PresenterPage
+    from engine.trackers.base import TrackState
+
+    page = PresenterPage(ctx)
+    qtbot.addWidget(page)
+    page.resize(1280, 800)
+    page.show()
+    page.source_edit.setText(COVERED)
+    page.realtime_check.setChecked(False)
+    page.take_reference()
+    with open_source(COVERED) as src:
+        box = next(iter(src.frames())).gt_box_xywh
+    page.canvas.set_model(box, [])
+    page.auto_split()
+    with qtbot.waitSignal(page.run.started, timeout=20000):
+        assert page.start_tracking() is True
+
+    def state() -> object:
+        page.display_tick()
+        rec = page.latest
+        return None if rec is None else rec.result.state
+
+    qtbot.waitUntil(lambda: state() is TrackState.TRACKING, timeout=30000)
+    page.redraw()
+    assert not page.canvas.overlay_lost
+    assert [lab for _, lab in page.canvas.overlay_boxes][:1] == ["presenter"]
+    qtbot.waitUntil(lambda: state() is TrackState.LOST, timeout=30000)
+    page.redraw()
+    assert page.light.state is TrackState.LOST
+    assert page.readout.text().startswith("LOST")
+    assert page.canvas.overlay_lost  # the held box drawn dashed, its patches not at all
+    with qtbot.waitSignal(page.run.finished, timeout=20000):
+        page.stop_tracking()
+    assert not page.canvas.overlay_lost
