@@ -165,8 +165,10 @@ def test_two_views_floor_calibration_and_distance(qtbot, ctx) -> None:  # type: 
     assert page.over_canvas.overlay_boxes == []
 
 
-COVERED = ("synthetic:frames=80,width=160,height=120,seed=3,presenter=1,path=static,"
-           "cover_start=20,cover_frames=100")
+# played in real time (30 fps): ~5 s in view, then ~8 s with the lens covered, so that the
+# display ticks see both states however loaded the machine is
+COVERED = ("synthetic:frames=400,width=160,height=120,seed=3,presenter=1,path=static,"
+           "cover_start=150,cover_frames=1000")
 
 
 def test_lost_shows_only_the_last_position_dashed(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
@@ -178,7 +180,7 @@ def test_lost_shows_only_the_last_position_dashed(qtbot, ctx) -> None:  # type: 
     page.resize(1280, 800)
     page.show()
     page.source_edit.setText(COVERED)
-    page.realtime_check.setChecked(False)
+    page.realtime_check.setChecked(True)
     page.take_reference()
     with open_source(COVERED) as src:
         box = next(iter(src.frames())).gt_box_xywh
