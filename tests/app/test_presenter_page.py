@@ -194,12 +194,11 @@ def test_lost_shows_only_the_last_position_dashed(qtbot, ctx) -> None:  # type: 
         rec = page.latest
         return None if rec is None else rec.result.state
 
+    # each check draws the newest record: the assertions are about that drawn frame
     qtbot.waitUntil(lambda: state() is TrackState.TRACKING, timeout=30000)
-    page.redraw()
     assert not page.canvas.overlay_lost
     assert [lab for _, lab in page.canvas.overlay_boxes][:1] == ["presenter"]
     qtbot.waitUntil(lambda: state() is TrackState.LOST, timeout=30000)
-    page.redraw()
     assert page.light.state is TrackState.LOST
     assert page.readout.text().startswith("LOST")
     assert page.canvas.overlay_lost  # the held box drawn dashed, its patches not at all
