@@ -21,7 +21,10 @@ compare within one run):
   translation error (35 pairs: less noisy than the 1 s RPE, which has only a few).
 - **keyframes** (Fig. 14): stores with decreasing keyframe counts (every k-th keyframe of
   the sweep store) tracked on an empty-studio cycle: max/mean translation error per count.
-- **memory**: peak RSS of a child process tracking with a store of at least 30 keyframes.
+- **memory**: peak RSS of a child process tracking with the sweep's store (at least 30
+  keyframes; ``peak_rss_mb``), and against the keyframe count (``rss_mb_by_keyframes``: 10,
+  30, 100, 200 keyframes thinned from a dense sweep). The tracker loads a store lazily and
+  keeps per keyframe only its precomputed reference (every one built at start-up).
 
 - **paper** (:mod:`engine.bench.dense_paper`): ``preset=paper`` beside the default in every
   part: the rail's ``rail.rows`` (``default_*`` / ``paper_*``, keyframe and incremental, and
@@ -42,6 +45,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -165,12 +169,12 @@ def _rail_spec(cycles: float, cycle_s: float, presenter_cycles: float) -> str:
     return spec
 
 
-def _sweep_store(points: int, kf_dist: float) -> Any:
+def _sweep_store(points: int, kf_dist: float, cycle_s: float = SWEEP_CYCLE_S) -> Any:
     from engine.dense.params import DenseParams
     from engine.keyframes.sweep import SweepParams, record_sweep
     from engine.sources import open_source
 
-    src = open_source(_rail_spec(1, SWEEP_CYCLE_S, 0))
+    src = open_source(_rail_spec(1, cycle_s, 0))
     res = record_sweep(
         src,
         SweepParams(kf_add_dist_m=kf_dist, max_kept_frames=0),
@@ -188,6 +192,7 @@ def _rail(args: argparse.Namespace, store: Any, extra: dict[str, Any] | None = N
     from engine.dense.details import DenseDetails
     from engine.dense.params import DenseParams
     from engine.dense.tracking import DenseKeyframeTracker
+    from engine.results import TrackState
     from engine.sources import open_source
     from engine.studio.sim import StudioTruth
     from engine.trackers import create_tracker
@@ -199,7 +204,7 @@ def _rail(args: argparse.Namespace, store: Any, extra: dict[str, Any] | None = N
     dense = DenseKeyframeTracker(DenseParams(n_points=args.points), store=store)
     incr = create_tracker("dense-incremental", n_points=args.points)
     err_d, err_i = [], []
-    lost_d = lost_i = 0
+    lost_d = lost_i = degraded_d = 0
     presenter = []
     relock = []
     poses: dict[str, list[Any]] = {k: [] for k in ("default_keyframe", "default_incremental",
@@ -219,6 +224,7 @@ def _rail(args: argparse.Namespace, store: Any, extra: dict[str, Any] | None = N
         err_d.append(_terr(rd.T_world_cam, f.gt_T_world_cam))
         err_i.append(_terr(ri.T_world_cam, f.gt_T_world_cam))
         lost_d += 0 if rd.state.is_good else 1
+        degraded_d += 1 if rd.state == TrackState.DEGRADED else 0
         lost_i += 0 if ri.state.is_good else 1
         dd = rd.details_as(DenseDetails)
         if dd is not None and dd.frames_to_relock is not None:
@@ -241,6 +247,7 @@ def _rail(args: argparse.Namespace, store: Any, extra: dict[str, Any] | None = N
         "keyframe_final_err_m": float(ed[-1]),
         "keyframe_max_err_per_cycle_m": cyc_d,
         "keyframe_lost_frames": lost_d,
+        "keyframe_degraded_frames": degraded_d,
         "keyframe_relocks": relock,
         "incremental_final_err_m": float(ei[-1]),
         "incremental_max_err_m": float(np.nanmax(ei)),
@@ -383,25 +390,67 @@ print(json.dumps({"peak_rss_mb": rss(), "after_imports_mb": base, "keyframes": n
 """
 
 
-def _memory(store: Any, frames: list[Any]) -> dict[str, Any]:
-    with tempfile.TemporaryDirectory(prefix="studiotrack-bench-dense-") as tmp:
-        store.save(Path(tmp) / "kf")
-        for i, f in enumerate(frames):
-            np.savez(Path(tmp) / f"f{i:04d}.npz", color=np.asarray(f.color_bgr),
-                     depth=np.asarray(f.depth_m), gt=np.asarray(f.gt_T_world_cam))
-        intr = dataclasses.asdict(frames[0].intrinsics)
-        out = subprocess.run(
-            [sys.executable, "-c", _MEM_CHILD, str(Path(tmp) / "kf"), tmp, json.dumps(intr),
-             str(len(frames))],
-            capture_output=True, text=True, check=False, timeout=600,
-        )
+def _save_frames(frames: list[Any], folder: Path) -> str:
+    for i, f in enumerate(frames):
+        np.savez(folder / f"f{i:04d}.npz", color=np.asarray(f.color_bgr),
+                 depth=np.asarray(f.depth_m), gt=np.asarray(f.gt_T_world_cam))
+    return json.dumps(dataclasses.asdict(frames[0].intrinsics))
+
+
+def _memory_child(store_dir: Path, frames_dir: Path, intr_json: str, n: int) -> dict[str, Any]:
+    """Peak RSS of a fresh process tracking ``n`` saved frames with the store in
+    ``store_dir`` (loaded by the tracker itself, as ``--keyframes DIR`` does)."""
+    out = subprocess.run(
+        [sys.executable, "-c", _MEM_CHILD, str(store_dir), str(frames_dir), intr_json, str(n)],
+        capture_output=True, text=True, check=False, timeout=600,
+    )
     if out.returncode != 0:
         log(f"memory: child failed: {out.stderr.strip().splitlines()[-1:]}")
         return {"peak_rss_mb": None, "error": out.stderr.strip()[-300:]}
     res: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
-    log(f"memory: peak RSS {res['peak_rss_mb']:.0f} MB with {res['keyframes']} keyframes "
-         f"({res['after_imports_mb']:.0f} MB after imports)")
     return res
+
+
+def _memory(store: Any, frames: list[Any]) -> dict[str, Any]:
+    with tempfile.TemporaryDirectory(prefix="studiotrack-bench-dense-") as tmp:
+        store.save(Path(tmp) / "kf")
+        intr = _save_frames(frames, Path(tmp))
+        res = _memory_child(Path(tmp) / "kf", Path(tmp), intr, len(frames))
+    if res.get("peak_rss_mb") is not None:
+        log(f"memory: peak RSS {res['peak_rss_mb']:.0f} MB with {res['keyframes']} keyframes "
+            f"({res['after_imports_mb']:.0f} MB after imports)")
+    return res
+
+
+#: keyframe counts of the RSS-against-model-size part
+RSS_KEYFRAMES = (10, 30, 100, 200)
+
+
+def _rss_by_keyframes(points: int, frames: list[Any]) -> dict[str, float | None]:
+    """Peak RSS (MB) of a tracking process against the keyframe count: one very slow
+    empty-studio sweep (24 s there and back, under 1.5 cm per frame) with keyframes every
+    1.6 cm (about 200 on the 3.3 m rail), thinned evenly to each count of
+    :data:`RSS_KEYFRAMES` (a count the sweep did not reach is None)."""
+    from engine.studio.paths import RAIL_LENGTH_M
+
+    big = _sweep_store(points, RAIL_LENGTH_M / (max(RSS_KEYFRAMES) + 5), 2 * SWEEP_CYCLE_S).store
+    ids = [k.id for k in big.keyframes]
+    out: dict[str, float | None] = {}
+    with tempfile.TemporaryDirectory(prefix="studiotrack-bench-dense-rss-") as tmp:
+        intr = _save_frames(frames, Path(tmp))
+        for count in RSS_KEYFRAMES:
+            if len(ids) < count:
+                out[str(count)] = None
+                continue
+            pick = [ids[int(i)] for i in np.linspace(0, len(ids) - 1, count).round()]
+            folder = Path(tmp) / f"kf{count}"
+            big.subset(pick).save(folder)
+            res = _memory_child(folder, Path(tmp), intr, len(frames))
+            out[str(count)] = res.get("peak_rss_mb")
+            shutil.rmtree(folder, ignore_errors=True)
+    log("memory: peak RSS by keyframes " + ", ".join(
+        f"{k}: {'-' if v is None else f'{v:.0f} MB'}" for k, v in out.items()))
+    return out
 
 
 def _plots(folder: Path, rail: dict[str, Any] | None, kfc: dict[str, Any] | None,
@@ -514,6 +563,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         mem = _memory(sw.store, frames)
         out["peak_rss_mb"] = mem.get("peak_rss_mb")
         out["memory"] = mem
+        out["rss_mb_by_keyframes"] = _rss_by_keyframes(args.points, frames)
     if args.plots:
         per_cycle = round(args.cycle_s * 30)
         out["plots"] = _plots(Path(args.plots), rail, kfc, per_cycle)

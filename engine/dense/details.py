@@ -24,3 +24,9 @@ class DenseDetails(TrackDetails):
     keyframe_added: bool = False
     frames_to_relock: int | None = None  # set on the frame that relocked after a loss
     lost_reason: str = ""  # why the attempt was rejected (empty when good)
+    # quality inputs of the DEGRADED state (engine.dense.tracking docstring)
+    inlier_fraction_weights: float | None = None  # share of W > 0.1, the optimiser's scale
+    residual_ratio: float | None = None  # median |residual| / the sequence's typical one
+    keyframe_distance_px: float | None = None  # eq. (21): frame pose vs its keyframe's
+    keyframe_in_range: bool | None = None  # within theta_max / d_max of eq. (20)
+    degraded_reason: str = ""  # why DEGRADED (empty otherwise)

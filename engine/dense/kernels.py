@@ -50,6 +50,7 @@ GEO_UNIT = 1e4
 STATS = (
     "median_abs_e", "valid_fraction", "inlier_fraction", "rms", "ok", "iterations",
     "last_step", "brightness_offset", "brightness_gain", "median_abs_geo_m", "n_kept",
+    "weights_inlier_fraction",
 )
 N_STATS = len(STATS)
 
@@ -709,6 +710,7 @@ def minimize(
     T_cd: np.ndarray,
     stop_px: float,
     z_typ: float,
+    quality_scale: float,
     nthreads: int,
     w_out: np.ndarray,
     uv_out: np.ndarray,
@@ -733,6 +735,12 @@ def minimize(
     ``N`` (3, n), Jacobian ``Jg`` (6, n), full-resolution rays, ``T_cd`` moving the current
     depth to the colour instant), each residual in units of its own robust (Tukey) scale.
     ``nthreads`` > 1 splits the photometric passes over that many threads (numba prange).
+
+    Quality report: ``w_out`` and the inlier fraction (share of points with weight > 0.1) use
+    the Tukey scale ``c * quality_scale`` when ``quality_scale`` > 0 (the sequence's typical
+    median residual: an honest "agrees with the model" for a bad frame, whose own adaptive
+    scale of eq. (9) grows with its residuals), else the last iteration's own scale; the
+    share of W > 0.1 under the optimiser's own scale is ``weights_inlier_fraction``.
     """
     n = P.shape[1]
     T = T0.copy()
@@ -861,9 +869,11 @@ def minimize(
             break
     # W = w_c w_z (eq. (13)) and the residuals of the last evaluation, full resolution pixels
     inv = 1.0 / (scale * TUKEY_B)
+    qinv = 1.0 / (TUKEY_C * quality_scale * TUKEY_B) if quality_scale > 0.0 else inv
     sw = 0.0
     swe = 0.0
     ninl = 0
+    nq = 0
     for i in range(n):
         if i >= m_last:
             w_out[i] = 0.0
@@ -875,10 +885,15 @@ def minimize(
         u = r * inv
         t = max(1.0 - u * u, 0.0)
         wi = t * t * wz[i]
-        w_out[i] = wi
+        uq = r * qinv
+        tq = max(1.0 - uq * uq, 0.0)
+        wq = tq * tq * wz[i]
+        w_out[i] = wq
         e_out[i] = r if wz[i] > 0.0 else 0.0
         uv_out[i, 0] = u0[i]
         uv_out[i, 1] = v0[i]
+        if wq > 0.1:
+            nq += 1
         if wi > 0.0:
             sw += wi
             swe += wi * r * r
@@ -886,7 +901,7 @@ def minimize(
                 ninl += 1
     stats[0] = med
     stats[1] = nvalid / max(m_last, 1)
-    stats[2] = ninl / max(m_last, 1)
+    stats[2] = nq / max(m_last, 1)
     stats[3] = math.sqrt(swe / sw) if sw > 0.0 else np.inf
     stats[4] = 1.0 if ok else 0.0
     stats[5] = total_iters
@@ -895,6 +910,7 @@ def minimize(
     stats[8] = alpha
     stats[9] = medg
     stats[10] = nkeep
+    stats[11] = ninl / max(m_last, 1)
     return T, stats
 
 

@@ -78,9 +78,15 @@ class DenseParams(Params):
                          help="threads sharing the point passes of each iteration (numba); 1: "
                          "the tracker's own thread only (steadiest on a busy machine)")
     # -- loss, relocalisation, motion model -------------------------------------------------
-    min_inlier_fraction: float = param(0.3, lo=0.0, hi=1.0, step=0.05,
-                                       help="LOST below this fraction of points with weight "
-                                       "> 0.1")
+    min_inlier_fraction: float = param(0.15, lo=0.0, hi=1.0, step=0.05,
+                                       help="LOST below this fraction of inliers (weight "
+                                       "> 0.1 at the sequence's typical residual scale)")
+    degraded_inlier_fraction: float = param(0.4, lo=0.0, hi=1.0, step=0.05,
+                                            help="DEGRADED below this fraction of inliers "
+                                            "(e.g. a large part of the view occluded)")
+    degraded_residual_ratio: float = param(2.5, lo=1.0, hi=100.0, step=0.1,
+                                           help="DEGRADED above this multiple of the "
+                                           "sequence's typical median residual")
     max_median_residual: float = param(40.0, lo=1.0, hi=255.0,
                                        help="LOST above this median |intensity residual| (grey "
                                        "levels)")

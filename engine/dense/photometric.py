@@ -257,17 +257,18 @@ class AlignResult:
     T_cur_ref: F64
     median_abs_e: float  # grey levels (0-255), finest level evaluated
     valid_fraction: float  # points projecting inside the image
-    inlier_fraction: float  # points with weight > 0.1
+    inlier_fraction: float  # points with weight > 0.1 (``weights``, see quality_scale)
     rms: float  # weighted RMS residual (grey levels)
     ok: bool  # linear system solvable, finite
     iterations: int
-    weights: F32  # (n,) W = w_c w_z in [0, 1]
+    weights: F32  # (n,) w_c w_z in [0, 1] (Tukey scale: quality_scale, else eq. (9)'s own)
     uv_full: F32  # (n, 2) warped points in the current full-resolution image
     residuals: F32  # (n,)
     brightness_offset: float = 0.0  # removed global offset (grey levels), finest level
     brightness_gain: float = 1.0  # fitted gain of the affine brightness model, finest level
     median_abs_geo_m: float = 0.0  # median |point-to-plane residual| (geometric term only)
     steps_px: tuple[float, ...] = ()  # image motion of each update (pixels of its level)
+    weights_inlier_fraction: float = 0.0  # share of W > 0.1 under the optimiser's own scale
 
 
 #: longest iteration log kept in AlignResult.steps_px
@@ -293,6 +294,7 @@ def align(
     stop_px: float = 0.0,
     level_fraction: tuple[float, float, float] = (1.0, 1.0, 1.0),
     threads: int = 1,
+    quality_scale: float = 0.0,
 ) -> AlignResult:
     """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1).
 
@@ -301,7 +303,9 @@ def align(
     share of the points used at each level (the paper: all at every level); ``stop_px``: stop
     a level once an update moves the image by less than this many pixels of that level (0:
     the fixed counts of the paper); ``threads`` > 1 splits the passes over the points between
-    that many threads.
+    that many threads. ``quality_scale`` (grey levels, > 0): report ``weights`` and
+    ``inlier_fraction`` against this typical median residual instead of the frame's own (a
+    frame that went wrong cannot make its residuals look normal by inflating its scale).
     """
     from engine.dense import kernels
 
@@ -327,7 +331,8 @@ def align(
         full_rays(intr) if use_geo else _NO_RAYS,
         float(geo_weight) if use_geo else 0.0, float(min_geo_scale_m),
         _NO_TCD if T_color_depth is None else np.ascontiguousarray(T_color_depth, np.float64),
-        float(stop_px), float(ref.z_median_m), int(threads), w, uv, e, steps,
+        float(stop_px), float(ref.z_median_m), float(quality_scale), int(threads), w, uv, e,
+        steps,
     )
     ok = bool(st[4] > 0.5) and bool(np.all(np.isfinite(T)))
     if ok:
@@ -348,4 +353,5 @@ def align(
         brightness_gain=float(st[8]),
         median_abs_geo_m=float(st[9]),
         steps_px=tuple(float(v) for v in steps[: min(its, _MAX_STEPS)]),
+        weights_inlier_fraction=float(st[11]),
     )

@@ -1,13 +1,31 @@
 """The dense trackers: incremental (Algorithm 2) and keyframe (Algorithm 3), with loss
-detection and relocalisation.
+detection, a DEGRADED state and relocalisation.
 
-Loss: a frame is *bad* when the linear system cannot be solved, the pose is not finite, the
-inlier fraction falls below ``min_inlier_fraction``, the median |residual| exceeds
-``max_median_residual`` (grey levels), or the pose jumps more than ``max_step_m`` /
-``max_step_deg`` from its initial guess (divergence). A bad frame reports LOST and holds the
-last good pose (never extrapolated). While lost, each frame tries the nearest keyframes to
-the last good pose (``relocalize_candidates``, eq. (21) order); a success is reported as
-RELOCALIZING for ``relock_confirm_frames`` frames, then TRACKING. ``details``
+Quality report. The frame's *inliers* are its points whose Tukey weight (eq. (9)-(10)) times
+depth weight (eq. (12)) exceeds 0.1 with the scale set by the sequence's *typical* median
+residual (an average over good, not DEGRADED frames, never below one grey level), not by the
+frame's own median: a frame that went wrong (a covered lens) inflates its own scale of eq.
+(9) until nearly every point looks like an inlier to the optimiser, but not against what
+good frames of this camera look like. ``TrackResult.inlier_fraction`` and the overlay's
+point weights are these, also on a LOST frame (they are that frame's own attempt);
+``details.inlier_fraction_weights`` is the optimiser's own view. ``residual`` is the median
+|residual| (grey levels), ``details.residual_ratio`` that over the typical one, and the
+keyframe tracker reports ``details.keyframe_distance_px`` (eq. (21) between the frame's pose
+and its keyframe's) and ``keyframe_in_range`` (eq. (20)).
+
+States. A frame is *bad* (LOST, holding the last good pose, never extrapolated) when the
+linear system cannot be solved, the pose is not finite, the inliers fall below
+``min_inlier_fraction``, the median |residual| exceeds ``residual_ratio`` times the typical
+one (at least 4 grey levels) or ``max_median_residual``, the removed brightness offset
+exceeds ``max_brightness_offset``, or the pose jumps more than ``max_step_m`` /
+``max_step_deg`` from its initial guess (divergence). A good frame is DEGRADED (the pose is
+sent, flagged) when the inliers fall below ``degraded_inlier_fraction`` (most of the view
+occluded or changed), the median residual exceeds ``degraded_residual_ratio`` times the
+typical one, or (keyframe tracker) no keyframe lies within ``theta_max_deg`` / ``d_max_m``
+(eq. (20): the camera has left the keyframe model); ``details.degraded_reason`` and
+``TrackResult.message`` say which. Otherwise TRACKING. While lost, each frame tries the
+nearest keyframes to the last good pose (``relocalize_candidates``, eq. (21) order); a
+success is reported as RELOCALIZING for ``relock_confirm_frames`` frames. ``details``
 (:class:`engine.dense.details.DenseDetails`) carries ``frames_to_relock`` on the frame that
 relocked.
 """
@@ -31,10 +49,20 @@ from engine.dense.pyramid import gray_u8
 from engine.errors import TrackerError
 from engine.frames import Frame
 from engine.geometry import invert, rotation_angle_rad, se3_exp, se3_log
-from engine.keyframes.store import Keyframe, KeyframeStore, KeyframeStoreError, same_camera
+from engine.keyframes.store import (
+    Keyframe,
+    KeyframeStore,
+    KeyframeStoreError,
+    frustum_metric,
+    pose_distance,
+    same_camera,
+)
 from engine.results import Overlay, TrackResult, TrackState
 
 F64 = NDArray[np.float64]
+
+#: the smallest typical residual (grey levels) the quality report measures against
+QUALITY_FLOOR_GREY = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,10 +157,11 @@ class _DenseBase:
         )
 
     def _note_good_pose(
-        self, frame: Frame, T_world_cam: F64, res: ph.AlignResult | None = None
+        self, frame: Frame, T_world_cam: F64, res: ph.AlignResult | None = None,
+        typical: bool = True,
     ) -> None:
-        """Remember the last two good poses (motion model, depth-delay compensation) and the
-        typical residual."""
+        """Remember the last two good poses (motion model, depth-delay compensation) and,
+        from frames that are not DEGRADED (``typical``), the typical residual."""
         prev = self._last_good_stamped
         self._last_step = None
         if prev is not None and frame.timestamp_s > prev[0]:
@@ -143,7 +172,7 @@ class _DenseBase:
             if self._lost_frames == 0 and self._velocity is not None:
                 self._last_step = step
         self._last_good_stamped = (frame.timestamp_s, np.array(T_world_cam))
-        if res is not None:
+        if res is not None and typical:
             r = res.median_abs_e
             t = self._typical_residual
             self._typical_residual = r if t is None else 0.9 * t + 0.1 * r
@@ -171,9 +200,16 @@ class _DenseBase:
             brightness_offset=p.brightness_offset, geo_weight=p.geometric_weight,
             T_color_depth=T_cd, brightness_gain=p.brightness_gain,
             stop_px=p.stop_px, level_fraction=p.level_fraction_fine_to_coarse,
+            quality_scale=self._quality_scale(),
         )
         good, why = _check(res, T0, p, self._max_residual())
         return _Attempt(res, good, why)
+
+    def _quality_scale(self) -> float:
+        """Median residual the quality report measures against: the sequence's typical one,
+        never below one grey level (the 8-bit quantisation); 0 before the first good frame."""
+        t = self._typical_residual
+        return 0.0 if t is None else max(t, QUALITY_FLOOR_GREY)
 
     def _max_residual(self) -> float:
         """Loss threshold on the median |residual|: the absolute cap, or a multiple of the
@@ -198,16 +234,35 @@ class _DenseBase:
             return np.array(frame.gt_T_world_cam, dtype=np.float64)
         return np.eye(4)
 
-    def _good_state(self, extras: dict[str, Any]) -> TrackState:
-        """State after a good frame, handling relock bookkeeping."""
+    def _degraded_reasons(self, res: ph.AlignResult, kf_in_range: bool | None) -> list[str]:
+        """Why a good frame is DEGRADED (empty: TRACKING); see the module docstring."""
+        p = self._params
+        why = []
+        if res.inlier_fraction < p.degraded_inlier_fraction:
+            why.append(f"inliers {res.inlier_fraction:.2f} < {p.degraded_inlier_fraction:.2f}")
+        t = self._quality_scale()
+        if t > 0.0 and res.median_abs_e > p.degraded_residual_ratio * t:
+            why.append(
+                f"residual {res.median_abs_e:.1f} > {p.degraded_residual_ratio:g} x typical "
+                f"{t:.1f}"
+            )
+        if kf_in_range is False:
+            why.append("no keyframe within theta_max_deg / d_max_m (eq. 20)")
+        return why
+
+    def _good_state(self, extras: dict[str, Any], degraded: list[str]) -> TrackState:
+        """State after a good frame: RELOCALIZING while a relock is being confirmed, else
+        DEGRADED when there are reasons, else TRACKING."""
         if self._lost_frames > 0:
             extras["frames_to_relock"] = self._lost_frames
             self._lost_frames = 0
             self._confirm_left = self._params.relock_confirm_frames
+        if degraded:
+            extras["degraded_reason"] = "; ".join(degraded)
         if self._confirm_left > 0:
             self._confirm_left -= 1
             return TrackState.RELOCALIZING
-        return TrackState.TRACKING
+        return TrackState.DEGRADED if degraded else TrackState.TRACKING
 
     def _result(
         self,
@@ -234,9 +289,12 @@ class _DenseBase:
             # the selected points that land in the current image, coloured by W (Fig. 15);
             # boolean indexing copies
             overlay = Overlay(points_uv=uv[inside], point_weights=r.weights[inside])
+            t = self._quality_scale()
             extras.update(
                 rms_residual=r.rms, valid_fraction=r.valid_fraction, iterations=r.iterations,
                 n_points=int(r.weights.shape[0]),
+                inlier_fraction_weights=r.weights_inlier_fraction,
+                residual_ratio=r.median_abs_e / t if t > 0.0 else None,
             )
             if not att.good:
                 extras["lost_reason"] = att.why
@@ -252,7 +310,7 @@ class _DenseBase:
             timings_ms=timings,
             overlay=overlay,
             details=DenseDetails(**extras),
-            message=extras.get("lost_reason", ""),
+            message=extras.get("lost_reason", "") or extras.get("degraded_reason", ""),
         )
 
 
@@ -303,9 +361,10 @@ class DenseIncrementalTracker(_DenseBase):
         if att.good:
             self._T_cur_ref = att.res.T_cur_ref
             T_world_cam = ph.orthonormalize(self._T_world_ref @ invert(self._T_cur_ref))
-            self._note_good_pose(frame, T_world_cam, att.res)
+            degraded = self._degraded_reasons(att.res, None)
+            self._note_good_pose(frame, T_world_cam, att.res, typical=not degraded)
             self._T_world_good = T_world_cam
-            state = self._good_state(extras)
+            state = self._good_state(extras, degraded)
             th = math.degrees(rotation_angle_rad(self._T_cur_ref[:3, :3]))
             d = float(np.linalg.norm(self._T_cur_ref[:3, 3]))
             if (
@@ -372,7 +431,8 @@ class DenseKeyframeTracker(_DenseBase):
         return self._store
 
     def _load_store(self, folder: str) -> None:
-        self._store = KeyframeStore.load(Path(folder))
+        # lazily: each keyframe's images are read once, for its reference (memory)
+        self._store = KeyframeStore.load(Path(folder), lazy=True)
         self._store_dir = folder
         self._online = self._extend_store
         self._refs = {}
@@ -443,16 +503,24 @@ class DenseKeyframeTracker(_DenseBase):
         if att is not None and att.good and kf is not None:
             # T_cur = T^ T*, Alg. 3 (in our T_world_cam convention)
             T_world_cam = ph.orthonormalize(kf.T_world_cam @ invert(att.res.T_cur_ref))
-            self._note_good_pose(frame, T_world_cam, att.res)
+            # keyframe distance of this frame: eq. (21) pixels and eq. (20) range
+            th, dist = pose_distance(T_world_cam, kf.T_world_cam)
+            in_range = th < math.radians(p.theta_max_deg) and dist < p.d_max_m
+            extras["keyframe_distance_px"] = frustum_metric(
+                self._store.intrinsics, T_world_cam, kf.T_world_cam, self._store.test_points
+            )
+            extras["keyframe_in_range"] = in_range
+            degraded = self._degraded_reasons(att.res, in_range)
+            self._note_good_pose(frame, T_world_cam, att.res, typical=not degraded)
             self._T_world_good = T_world_cam
             self._kf_id = kf.id
-            state = self._good_state(extras)
+            state = self._good_state(extras, degraded)
             # the view has changed so much that the residual nears the loss threshold
             # (an occluding presenter lowers the inlier fraction but hardly the median)
             weak = att.res.median_abs_e > 0.5 * p.max_median_residual
             if (
                 self._online
-                and state == TrackState.TRACKING
+                and state.is_good
                 and (
                     weak
                     or self._store.far_from_all(

@@ -48,13 +48,115 @@ class KeyframeStoreError(TrackerError):
 
 
 @dataclass(frozen=True, slots=True)
+class KeyframeFiles:
+    """Where a lazily loaded keyframe's images are (a store folder's two PNGs)."""
+
+    gray_path: Path
+    depth_path: Path
+    depth_scale: float
+    width: int
+    height: int
+
+    def read_gray(self) -> NDArray[np.uint8]:
+        import cv2
+
+        img = cv2.imread(str(self.gray_path), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise KeyframeStoreError(f"{self.gray_path}: missing or not a readable PNG")
+        if img.dtype != np.uint8 or img.ndim != 2:
+            raise KeyframeStoreError(f"{self.gray_path}: expected an 8-bit grey image")
+        self._check_size(self.gray_path, img.shape)
+        return u8(img)
+
+    def read_depth_m(self) -> NDArray[np.float32]:
+        import cv2
+
+        img = cv2.imread(str(self.depth_path), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise KeyframeStoreError(f"{self.depth_path}: missing or not a readable PNG")
+        if img.dtype != np.uint16 or img.ndim != 2:
+            raise KeyframeStoreError(f"{self.depth_path}: expected a 16-bit depth image")
+        self._check_size(self.depth_path, img.shape)
+        out: NDArray[np.float32] = img.astype(np.float32) / np.float32(self.depth_scale)
+        return out
+
+    def _check_size(self, path: Path, shape: tuple[int, ...]) -> None:
+        if shape != (self.height, self.width):
+            raise KeyframeStoreError(
+                f"{path}: size {shape[1]}x{shape[0]} does not match the store's "
+                f"{self.width}x{self.height}"
+            )
+
+
+@dataclass(frozen=True, slots=True, init=False, eq=False)
 class Keyframe:
-    """One keyframe K = {P*, c*, T*} (the points are selected lazily from the images)."""
+    """One keyframe K = {P*, c*, T*} (the points are selected from the images when a tracker
+    first needs them).
+
+    The images are either held (``Keyframe(id, T, gray, depth_m)``: a keyframe recorded in
+    this session, a store loaded eagerly) or read from the store's files on each access
+    (``files``, :meth:`KeyframeStore.load` with ``lazy=True``): a tracker reads them once to
+    precompute its reference and keeps only that (``resident`` tells which).
+    """
 
     id: int
     T_world_cam: F64
-    gray: NDArray[np.uint8]
-    depth_m: NDArray[np.float32]
+    _gray: NDArray[np.uint8] | None
+    _depth_m: NDArray[np.float32] | None
+    files: KeyframeFiles | None
+
+    def __init__(
+        self,
+        id: int,
+        T_world_cam: F64,
+        gray: NDArray[np.uint8] | None = None,
+        depth_m: NDArray[np.float32] | None = None,
+        *,
+        files: KeyframeFiles | None = None,
+    ) -> None:
+        if (gray is None or depth_m is None) and files is None:
+            raise KeyframeStoreError(f"keyframe {id}: needs its images or their files")
+        object.__setattr__(self, "id", id)
+        object.__setattr__(self, "T_world_cam", T_world_cam)
+        object.__setattr__(self, "_gray", gray)
+        object.__setattr__(self, "_depth_m", depth_m)
+        object.__setattr__(self, "files", files)
+
+    @property
+    def gray(self) -> NDArray[np.uint8]:
+        """8-bit grey image (full resolution); read from the file each time if lazy."""
+        if self._gray is not None:
+            return self._gray
+        assert self.files is not None
+        return self.files.read_gray()
+
+    @property
+    def depth_m(self) -> NDArray[np.float32]:
+        """Depth in metres (0 = invalid); read from the file each time if lazy."""
+        if self._depth_m is not None:
+            return self._depth_m
+        assert self.files is not None
+        return self.files.read_depth_m()
+
+    @property
+    def resident(self) -> bool:
+        """Whether the images are held in memory (else read from ``files`` on access)."""
+        return self._gray is not None and self._depth_m is not None
+
+    def with_pose(self, T_world_cam: F64) -> Keyframe:
+        """This keyframe at another pose (images, or their files, shared)."""
+        return Keyframe(
+            self.id, np.array(T_world_cam, dtype=np.float64), self._gray, self._depth_m,
+            files=self.files,
+        )
+
+    def with_depth(self, depth_m: NDArray[np.float32]) -> Keyframe:
+        """This keyframe with another depth map (now held in memory)."""
+        return Keyframe(self.id, self.T_world_cam.copy(), self.gray, depth_m)
+
+    def __repr__(self) -> str:
+        where = "resident" if self.resident else f"lazy {self.files}"
+        return f"Keyframe(id={self.id}, {where})"
 
 
 def frustum_test_points(intr: Intrinsics, depths_m: tuple[float, ...] = FRUSTUM_DEPTHS_M) -> F64:
@@ -109,6 +211,11 @@ class KeyframeStore:
     def __len__(self) -> int:
         return len(self.keyframes)
 
+    @property
+    def test_points(self) -> F64:
+        """The view-frustum test points of eq. (21) (Fig. 12), in the camera frame."""
+        return self._test_pts
+
     def by_id(self, kf_id: int) -> Keyframe:
         for kf in self.keyframes:
             if kf.id == kf_id:
@@ -134,7 +241,7 @@ class KeyframeStore:
         leaves this store unchanged."""
         return KeyframeStore(
             self.intrinsics,
-            [Keyframe(k.id, k.T_world_cam.copy(), k.gray, k.depth_m) for k in self.keyframes],
+            [k.with_pose(k.T_world_cam) for k in self.keyframes],
         )
 
     def without(self, kf_id: int) -> KeyframeStore:
@@ -146,15 +253,7 @@ class KeyframeStore:
         """A new store with some keyframe poses replaced (e.g. after SBA)."""
         return KeyframeStore(
             self.intrinsics,
-            [
-                Keyframe(
-                    k.id,
-                    np.array(T_world_cam.get(k.id, k.T_world_cam), dtype=np.float64),
-                    k.gray,
-                    k.depth_m,
-                )
-                for k in self.keyframes
-            ],
+            [k.with_pose(T_world_cam.get(k.id, k.T_world_cam)) for k in self.keyframes],
         )
 
     def with_depths(self, depth_m: Mapping[int, NDArray[np.float32]]) -> KeyframeStore:
@@ -162,7 +261,7 @@ class KeyframeStore:
         return KeyframeStore(
             self.intrinsics,
             [
-                Keyframe(k.id, k.T_world_cam.copy(), k.gray, depth_m.get(k.id, k.depth_m))
+                k.with_depth(depth_m[k.id]) if k.id in depth_m else k.with_pose(k.T_world_cam)
                 for k in self.keyframes
             ],
         )
@@ -271,8 +370,13 @@ class KeyframeStore:
         return folder / INDEX_NAME
 
     @classmethod
-    def load(cls, folder: str | Path) -> KeyframeStore:
-        """Read a store; a missing, corrupt or incompatible one raises KeyframeStoreError."""
+    def load(cls, folder: str | Path, *, lazy: bool = False) -> KeyframeStore:
+        """Read a store; a missing, corrupt or incompatible one raises KeyframeStoreError.
+
+        ``lazy``: read the index and check each PNG's header (type, size) only; the images
+        are decoded when a keyframe's ``gray``/``depth_m`` is read (a tracker reads each once
+        to precompute its reference), so a large store costs little memory.
+        """
         import cv2
 
         folder = Path(folder)
@@ -316,6 +420,14 @@ class KeyframeStore:
             for name in (gname, dname):
                 if "/" in name or "\\" in name or name.startswith("."):
                     raise KeyframeStoreError(f"{where}: bad file name {name!r}")
+            if lazy:
+                files = KeyframeFiles(
+                    folder / gname, folder / dname, intr.depth_scale, intr.width, intr.height
+                )
+                _check_png_header(files.gray_path, 8, (intr.width, intr.height))
+                _check_png_header(files.depth_path, 16, (intr.width, intr.height))
+                kfs.append(Keyframe(kf_id, T, files=files))
+                continue
             gray = cv2.imread(str(folder / gname), cv2.IMREAD_UNCHANGED)
             depth = cv2.imread(str(folder / dname), cv2.IMREAD_UNCHANGED)
             if gray is None:
@@ -337,6 +449,26 @@ class KeyframeStore:
         if len(set(ids)) != len(ids):
             raise KeyframeStoreError(f"{index_path}: duplicate keyframe ids")
         return cls(intr, kfs)
+
+
+def _check_png_header(path: Path, bit_depth: int, size_wh: tuple[int, int]) -> None:
+    """A grey PNG of the given bit depth and size, from its IHDR chunk (no decoding)."""
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(26)
+    except OSError:
+        raise KeyframeStoreError(f"{path}: missing or not a readable PNG") from None
+    if len(head) < 26 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        raise KeyframeStoreError(f"{path}: missing or not a readable PNG")
+    w = int.from_bytes(head[16:20], "big")
+    h = int.from_bytes(head[20:24], "big")
+    if head[24] != bit_depth or head[25] != 0:
+        kind = "an 8-bit grey image" if bit_depth == 8 else "a 16-bit depth image"
+        raise KeyframeStoreError(f"{path}: expected {kind}")
+    if (w, h) != size_wh:
+        raise KeyframeStoreError(
+            f"{path}: size {w}x{h} does not match the store's {size_wh[0]}x{size_wh[1]}"
+        )
 
 
 def _intrinsics_from(d: object, where: Path) -> Intrinsics:

@@ -53,6 +53,55 @@ def test_round_trip(tmp_path: Path) -> None:
     assert sorted(p.suffix for p in (tmp_path / "kf").iterdir()) == [".json"] + [".png"] * 6
 
 
+def test_lazy_load_reads_the_images_on_demand(tmp_path: Path) -> None:
+    """load(lazy=True) checks each PNG's header (type, size) without decoding; the images
+    are read when used, and edits keep (or, for new depth, end) the laziness."""
+    import cv2
+
+    folder = tmp_path / "kf"
+    _store().save(folder)
+    eager = KeyframeStore.load(folder)
+    lazy = KeyframeStore.load(folder, lazy=True)
+    for a, b in zip(eager.keyframes, lazy.keyframes, strict=True):
+        assert a.resident
+        assert not b.resident
+        np.testing.assert_array_equal(a.T_world_cam, b.T_world_cam)
+        np.testing.assert_array_equal(a.gray, b.gray)
+        np.testing.assert_array_equal(a.depth_m, b.depth_m)
+    assert not lazy.with_poses({0: np.eye(4)}).keyframes[0].resident
+    assert not lazy.copy().keyframes[1].resident
+    assert lazy.with_depths({0: eager.keyframes[0].depth_m}).keyframes[0].resident
+    intr = lazy.intrinsics
+    cv2.imwrite(str(folder / "kf_0002_gray.png"), np.zeros((10, 12), np.uint8))
+    with pytest.raises(KeyframeStoreError, match=r"kf_0002_gray\.png: size 12x10 does not"):
+        KeyframeStore.load(folder, lazy=True)
+    cv2.imwrite(str(folder / "kf_0002_gray.png"), np.zeros((intr.height, intr.width), np.uint16))
+    with pytest.raises(KeyframeStoreError, match="expected an 8-bit grey image"):
+        KeyframeStore.load(folder, lazy=True)
+    (folder / "kf_0002_gray.png").unlink()
+    with pytest.raises(KeyframeStoreError, match=r"kf_0002_gray\.png: missing"):
+        KeyframeStore.load(folder, lazy=True)
+
+
+def test_tracker_keeps_references_not_images(tmp_path: Path) -> None:
+    """A store given as keyframes_dir is loaded lazily: after the first frame (which builds
+    every keyframe's reference) no keyframe image is held."""
+    intr = small_intrinsics(distorted=True)
+    scene = PlaneScene(intr, room_scale=0.45)
+    st = KeyframeStore(intr)
+    for k in range(3):
+        T = se3_exp(np.array([0.03 * k, 0.0, 0.0, 0.0, 0.01 * k, 0.0]))
+        gray, depth = scene.render(T)
+        st.add(T, gray, depth)
+    st.save(tmp_path / "kf")
+    tr = create_tracker("dense", keyframes_dir=str(tmp_path / "kf"), n_points=1024)
+    res = tr.track(scene.frame(0, se3_exp(np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0]))))
+    assert res.state == TrackState.TRACKING
+    assert len(tr.store) == 3
+    assert not any(k.resident for k in tr.store.keyframes)
+    assert len(tr._refs) == 3
+
+
 def test_corrupt_and_incompatible_stores_fail_clearly(tmp_path: Path) -> None:
     folder = tmp_path / "kf"
     _store().save(folder)
