@@ -22,6 +22,14 @@ The median of eq. (9) is read from a histogram of the signed residuals (sec. 4.2
 of a good fit lies; coarse for outliers), 2 x 1024 bins over |e| < 256 grey levels, linear
 inside a bin. From the one histogram come both the brightness offset (the median of e) and
 the Tukey scale (the median of |e - offset|).
+
+One specialisation per kernel: every array argument reaches :func:`minimize` and
+:func:`precompute_reference` with one fixed type (dtype, layout, read-only inputs; see
+``engine.dense.photometric``), and a callee is never called once with a literal and once with
+a variable (``m - m``, not ``0``, starts a whole-range pass; no literal ``True``/``False``
+flags). A cached caller that mixes specialisations of a cached callee (numba picks one by
+casting) can segfault when a later process loads it from the cache (numba issue #6713), which
+is what happened on TUM with and without the geometric term.
 """
 
 from __future__ import annotations
@@ -555,7 +563,7 @@ def _photometric_pass(
         hist[:] = 0
         return _photometric_chunk(
             P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e,
-            wz, inside, over_kept, bins, hist, 0, m,
+            wz, inside, over_kept, bins, hist, m - m, m,  # 0, not the literal: see the module doc
         )
     _photometric_par(
         P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e, wz,
@@ -578,7 +586,7 @@ def _accumulate_pass(
     :func:`_photometric_pass`."""
     nc = accs.shape[0]
     if nc <= 1:
-        accumulate(J, e, cs, wz, a, b, beta, inv, acc, 0, m)
+        accumulate(J, e, cs, wz, a, b, beta, inv, acc, m - m, m)  # 0 as a variable (module doc)
         return
     _accumulate_par(J, e, cs, wz, a, b, beta, inv, accs, m)
     for k in range(acc.shape[0]):
@@ -589,25 +597,32 @@ def _accumulate_pass(
 
 
 @njit(cache=True, nogil=True)
-def _unpack(acc: np.ndarray, H: np.ndarray, g: np.ndarray, s: float, add: bool) -> None:
-    """H, g (+)= s * (normal equations packed by :func:`accumulate`)."""
+def _unpack(acc: np.ndarray, H: np.ndarray, g: np.ndarray) -> None:
+    """H, g = the normal equations packed by :func:`accumulate`."""
+    k = 0
+    for a in range(6):
+        for b in range(a, 6):
+            H[a, b] = acc[k]
+            H[b, a] = acc[k]
+            k += 1
+    for a in range(6):
+        g[a] = acc[21 + a]
+
+
+@njit(cache=True, nogil=True)
+def _unpack_add(acc: np.ndarray, H: np.ndarray, g: np.ndarray, s: float) -> None:
+    """H, g += s * (the normal equations packed by :func:`accumulate`). (Two functions, not
+    a literal ``add`` flag: one specialisation each, see the module doc.)"""
     k = 0
     for a in range(6):
         for b in range(a, 6):
             v = s * acc[k]
-            if add:
-                H[a, b] += v
-                if b != a:
-                    H[b, a] += v
-            else:
-                H[a, b] = v
-                H[b, a] = v
+            H[a, b] += v
+            if b != a:
+                H[b, a] += v
             k += 1
     for a in range(6):
-        if add:
-            g[a] += s * acc[21 + a]
-        else:
-            g[a] = s * acc[21 + a]
+        g[a] += s * acc[21 + a]
 
 
 @njit(cache=True, nogil=True)
@@ -764,7 +779,6 @@ def minimize(
     ng = n if use_geo else 1
     rg = np.zeros(ng)
     wg = np.zeros(ng)
-    zeros_g = np.zeros(ng)
     inv_tau2 = 1.0 / (tau_m * tau_m)
     beta = 0.0
     alpha = 1.0
@@ -823,20 +837,22 @@ def minimize(
             _accumulate_pass(
                 Jl, e, csl, wz, alpha, 1.0 - alpha, beta, 1.0 / (scale * TUKEY_B), acc, accs, m
             )
-            _unpack(acc, H, g, 1.0, False)
+            _unpack(acc, H, g)
             if use_geo:
                 # combined photometric + point-to-plane (ICP-like) cost, each residual in
                 # units of its own robust scale (an extension; the paper is photometric)
                 M = _inverse(T) @ T_cd
-                ngk = sample_geometric(u0, v0, wz, P, N, depth, rays, M, rg, wg, 0, m)
+                ngk = sample_geometric(u0, v0, wz, P, N, depth, rays, M, rg, wg, m - m, m)
                 hist[:] = 0
-                histogram(rg, wg, GEO_UNIT, bins, hist, 0, m)
+                histogram(rg, wg, GEO_UNIT, bins, hist, m - m, m)
                 if ngk >= 12:
                     _cumulate(hist, cum)
                     medg = hist_median_abs(cum, hist, 0.0) / GEO_UNIT
                     scale_g = TUKEY_C * max(medg, min_geo_scale, 1e-9)
+                    # (csl with coefficient 0 in place of a zero array: the same argument
+                    # types as the photometric call, one specialisation)
                     _accumulate_pass(
-                        Jg, rg, zeros_g, wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc,
+                        Jg, rg, csl, wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc,
                         accs, m,
                     )
                     s_c = 1.0 / (scale * scale)
@@ -844,7 +860,7 @@ def minimize(
                         g[a] *= s_c
                         for b in range(6):
                             H[a, b] *= s_c
-                    _unpack(acc, H, g, geo_weight / (scale_g * scale_g), True)
+                    _unpack_add(acc, H, g, geo_weight / (scale_g * scale_g))
             for a in range(6):
                 g[a] = -g[a]
             x, solved = _cholesky_solve6(H, g)

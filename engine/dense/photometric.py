@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -102,10 +103,21 @@ def _normals(depth: F32, intr: Intrinsics, uf: NDArray[np.int64], vf: NDArray[np
     return n
 
 
-_NO_N = np.zeros((3, 0), dtype=np.float32)
-_NO_JG = np.zeros((6, 0), dtype=np.float32)
-_NO_RAYS = np.zeros((1, 1, 2))
-_NO_TCD = np.eye(4)
+def _ro(a: NDArray[Any], dtype: type[np.generic]) -> NDArray[Any]:
+    """A read-only, C-contiguous view of ``a`` as ``dtype`` (a copy only if needed).
+
+    Every kernel input goes through this, so each numba kernel sees one type per argument
+    whatever the caller's arrays were (read-only frame depth, writable keyframe depth, ...):
+    one specialisation per kernel, see :mod:`engine.dense.kernels`."""
+    v = np.ascontiguousarray(a, dtype=dtype).view()
+    v.setflags(write=False)
+    return v
+
+
+_NO_N = _ro(np.zeros((3, 0)), np.float32)
+_NO_JG = _ro(np.zeros((6, 0)), np.float32)
+_NO_RAYS = _ro(np.zeros((1, 1, 2)), np.float64)
+_NO_TCD = _ro(np.eye(4), np.float64)
 
 
 def cam_vector(intr: Intrinsics) -> F64:
@@ -214,9 +226,11 @@ def build_reference(
     n = P.shape[0]
     cstar = np.zeros((3, n), dtype=np.float32)
     J = np.zeros((3, 6, n), dtype=np.float32)
+    f32, f64 = np.float32, np.float64
     kernels.precompute_reference(
-        P32, pre.levels[0], pre.levels[1], pre.levels[2], cam_vector(intr), intr.dist,
-        pyr.level_scales(), cstar, J,
+        _ro(P32, f32), _ro(pre.levels[0], f32), _ro(pre.levels[1], f32),
+        _ro(pre.levels[2], f32), _ro(cam_vector(intr), f64), _ro(intr.dist, f64),
+        _ro(pyr.level_scales(), f64), cstar, J,
     )
     uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float32)
     zmed = float(np.median(P[:, 2])) if n else 1.0
@@ -318,19 +332,21 @@ def align(
     normals, Jg = ref.normals, ref.Jg
     use_geo = geo_weight > 0 and normals is not None and Jg is not None
     level_n = np.array([max(1, round(f * n)) for f in level_fraction], dtype=np.int64)
+    f32, f64, i64 = np.float32, np.float64, np.int64
     T, st = kernels.minimize(
-        ref.P, ref.cstar, ref.J, pre.levels[0], pre.levels[1], pre.levels[2], pre.depth_m,
-        cam_vector(intr), intr.dist, pyr.level_scales(),
-        np.asarray(iterations_fine_to_coarse, dtype=np.int64), level_n,
-        np.ascontiguousarray(T0_cur_ref, dtype=np.float64), float(tau_m),
+        _ro(ref.P, f32), _ro(ref.cstar, f32), _ro(ref.J, f32), _ro(pre.levels[0], f32),
+        _ro(pre.levels[1], f32), _ro(pre.levels[2], f32), _ro(pre.depth_m, f32),
+        _ro(cam_vector(intr), f64), _ro(intr.dist, f64), _ro(pyr.level_scales(), f64),
+        _ro(np.asarray(iterations_fine_to_coarse), i64), _ro(level_n, i64),
+        _ro(T0_cur_ref, f64), float(tau_m),
         float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
         bool(scale_over_kept), bool(brightness_offset),
         bool(brightness_gain and brightness_offset),
-        normals if use_geo and normals is not None else _NO_N,
-        Jg if use_geo and Jg is not None else _NO_JG,
-        full_rays(intr) if use_geo else _NO_RAYS,
+        _ro(normals, f32) if use_geo and normals is not None else _NO_N,
+        _ro(Jg, f32) if use_geo and Jg is not None else _NO_JG,
+        _ro(full_rays(intr), f64) if use_geo else _NO_RAYS,
         float(geo_weight) if use_geo else 0.0, float(min_geo_scale_m),
-        _NO_TCD if T_color_depth is None else np.ascontiguousarray(T_color_depth, np.float64),
+        _NO_TCD if T_color_depth is None else _ro(T_color_depth, f64),
         float(stop_px), float(ref.z_median_m), float(quality_scale), int(threads), w, uv, e,
         steps,
     )

@@ -308,3 +308,36 @@ def test_paper_preset_is_the_published_method() -> None:
     assert (p.stop_px, p.geometric_weight, p.edge_depth_ratio) == (0.0, 0.0, 0.0)
     assert "paper" in p.matching_presets()
     assert "paper" not in DenseParams().matching_presets()  # the defaults go beyond it
+
+
+def test_kernels_see_one_type_per_argument() -> None:
+    """Writable or read-only frame arrays (a camera frame's depth is read-only, a keyframe's
+    is not), float64 or float32 inputs, with or without the geometric term, one or two
+    threads: each kernel entry point keeps a single numba specialisation. A cached caller
+    compiled against several specialisations of its callees can segfault when a later process
+    loads it from numba's cache (numba issue #6713; it did on TUM)."""
+    intr = small_intrinsics(distorted=True)
+    scene = PlaneScene(intr, room_scale=0.45)
+    g0, d0 = scene.render(np.eye(4))
+    g1, d1 = scene.render(se3_exp(np.array([0.01, 0.0, 0.005, 0.0, 0.01, 0.0])))
+    d1_ro = np.asarray(d1, dtype=np.float32).view()
+    d1_ro.setflags(write=False)
+    for with_normals, depth, gray in ((False, d1, g1.astype(np.float32)),
+                                      (True, d1_ro, g1.astype(np.float64))):
+        pre0 = ph.preprocess(g0.astype(np.float32), d0.astype(np.float64), intr)
+        ref = ph.build_reference(pre0, 1024, with_normals=with_normals)
+        cur = ph.preprocess(gray, depth, intr)
+        for threads in (1, 2):
+            res = ph.align(ref, cur, np.eye(4), (3, 2, 1), geo_weight=1.0 if with_normals else 0.0,
+                           T_color_depth=np.eye(4) if with_normals else None,
+                           brightness_offset=True, brightness_gain=with_normals,
+                           threads=threads)
+            assert res.ok
+    assert len(kernels.minimize.signatures) == 1, kernels.minimize.signatures
+    assert len(kernels.precompute_reference.signatures) == 1
+    # the callees only minimize calls (compiled here on a fresh cache, empty when minimize
+    # came from the cache): no literal-argument twin specialisations
+    for callee in (kernels._photometric_pass, kernels._accumulate_pass, kernels.sample,
+                   kernels.sample_geometric, kernels._unpack, kernels._unpack_add,
+                   kernels._photometric_chunk):
+        assert len(callee.signatures) <= 1, (callee.py_func.__name__, callee.signatures)
