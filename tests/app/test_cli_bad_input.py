@@ -172,8 +172,10 @@ def test_listen_counts_malformed_opentrackio_samples(tmp_path: Path) -> None:
         b'{"transforms": [{"translation": {"x": 1.5}}]}',
     ]
 
+    listening = threading.Event()
+
     def send() -> None:
-        time.sleep(0.5)
+        assert listening.wait(30), "listen never said it was listening"
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             for i, p in enumerate(payloads):
                 for pkt in ot.build_packets(p, i, "json"):
@@ -182,8 +184,9 @@ def test_listen_counts_malformed_opentrackio_samples(tmp_path: Path) -> None:
 
     t = threading.Thread(target=send)
     t.start()
-    o = run_cli(["listen", "--opentrackio", str(port), "--seconds", "5", "--count", "1",
-                 "--json"], budget_s=30)
+    o = run_cli(["listen", "--opentrackio", str(port), "--seconds", "20", "--count", "1",
+                 "--json"], budget_s=30,
+                on_progress=lambda msg: msg.startswith("listening on") and listening.set())
     t.join()
     assert o.rc == 0, o.stderr
     res = _json(o.stdout)

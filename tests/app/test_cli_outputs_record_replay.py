@@ -111,9 +111,9 @@ def test_replay_of_a_missing_session_is_a_clear_error(tmp_path, capsys):
 
 def test_listen_decodes_packets(capsys):
     import threading
-    import time
 
     from engine.outputs import opentrackio as ot
+    from engine.progress import redirected
 
     probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     probe.bind(("127.0.0.1", 0))
@@ -138,17 +138,19 @@ def test_listen_decodes_packets(capsys):
             )
         )
     )
-    t.start()
-    time.sleep(0.5)
-    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    golden = bytes.fromhex("d100df78aa0047ef" + "00" * 13 + "4000001501d1ff12")
-    tx.sendto(golden, ("127.0.0.1", port))
-    tx.sendto(golden[:-1] + b"\x00", ("127.0.0.1", port))  # bad checksum: counted
-    for p in ot.build_packets(b'{"tracker":{"status":"LOST"}}', 1, "json", max_segment=10):
-        tx.sendto(p, ("127.0.0.1", port + 1))
-    tx.sendto(golden, ("127.0.0.1", port))
-    tx.close()
-    t.join(10)
+    listening = threading.Event()
+    with redirected(lambda msg: msg.startswith("listening on") and listening.set()):
+        t.start()
+        assert listening.wait(30), "listen never said it was listening"
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        golden = bytes.fromhex("d100df78aa0047ef" + "00" * 13 + "4000001501d1ff12")
+        tx.sendto(golden, ("127.0.0.1", port))
+        tx.sendto(golden[:-1] + b"\x00", ("127.0.0.1", port))  # bad checksum: counted
+        for p in ot.build_packets(b'{"tracker":{"status":"LOST"}}', 1, "json", max_segment=10):
+            tx.sendto(p, ("127.0.0.1", port + 1))
+        tx.sendto(golden, ("127.0.0.1", port))
+        tx.close()
+        t.join(10)
     out = capsys.readouterr().out.strip().splitlines()
     res = json.loads(out[-1])
     assert rcs == [0]
