@@ -1,8 +1,9 @@
 """The 3D studio view: a viser server on 127.0.0.1 (Tykkälä 2014 Fig. 1 and 11).
 
 Shows the keyframe point cloud (fused depth, coloured by the keyframe grey values),
-keyframe frustums (click -> ``on_keyframe_clicked(kf_id)``), annotated points and the live
-camera frustum. The live frustum follows a keyframe sweep being recorded and, once
+keyframe frustums (click -> ``on_keyframe_clicked(kf_id)``), annotated points (click ->
+``on_point_clicked(X_world)``: the Keyframes page can move the studio origin there) and the
+live camera frustum. The live frustum follows a keyframe sweep being recorded and, once
 ``follow(ctx.run)`` is called, every pose run of the window: the run owner feeds it from a
 3D-view sink (:class:`engine.sinks.view_feed.ViewFeedSink`, its own thread, at most 20 Hz),
 so the browser never slows the engine or the window.
@@ -62,12 +63,15 @@ class StudioViewer:
         host: str = "127.0.0.1",
         port: int = 8080,
         on_keyframe_clicked: Callable[[int], None] | None = None,
+        on_point_clicked: Callable[[F64], None] | None = None,
     ) -> None:
         import viser
 
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.host = host
         self.on_keyframe_clicked = on_keyframe_clicked
+        self.on_point_clicked = on_point_clicked
+        self._points = np.zeros((0, 3))
         self._lock = threading.Lock()
         self.nodes: dict[str, Any] = {}
         self._intr: Intrinsics | None = None
@@ -166,9 +170,10 @@ class StudioViewer:
             self._drop("/keyframes/", keep)
 
     def set_points(self, X_world: Sequence[F64] | F64) -> None:
-        """Annotated 3D points (red)."""
+        """Annotated 3D points (red), each a clickable sphere (``on_point_clicked``)."""
         X = np.asarray(X_world, dtype=np.float32).reshape(-1, 3)
         with self._lock:
+            self._points = X.astype(np.float64)
             self._put(
                 "/annotations",
                 self.server.scene.add_point_cloud(
@@ -179,6 +184,26 @@ class StudioViewer:
                     point_shape="circle",
                 ),
             )
+            keep = set()
+            for i, x in enumerate(X):
+                name = f"/picks/point_{i:04d}"
+                h = self.server.scene.add_icosphere(name, radius=0.04, color=(230, 30, 30),
+                                                    opacity=0.35, position=tuple(map(float, x)))
+
+                def clicked(_event: Any, i: int = i) -> None:
+                    self.point_clicked(i)
+
+                h.on_click(clicked)
+                self._put(name, h)
+                keep.add(name)
+            self._drop("/picks/", keep)
+
+    def point_clicked(self, index: int) -> None:
+        """Annotated point ``index`` was clicked (viser's thread): tell the owner."""
+        with self._lock:
+            X = self._points[index].copy() if 0 <= index < len(self._points) else None
+        if X is not None and self.on_point_clicked is not None:
+            self.on_point_clicked(X)
 
     def set_live_camera(
         self, T_world_cam: F64 | None, intrinsics: Intrinsics | None = None

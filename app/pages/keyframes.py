@@ -196,6 +196,11 @@ class KeyframesPage(Page):
         for b in (self.view_button, self.export_cloud_button, self.export_mesh_button):
             row.addWidget(b)
         vl.addLayout(row)
+        self.origin_pick = QCheckBox("A click on an annotated point sets the studio origin")
+        self.origin_pick.setObjectName("view_origin_pick")
+        self.origin_pick.setToolTip("the studio frame's origin moves to the clicked point "
+                                    "(axes kept), into the project and the outputs")
+        vl.addWidget(self.origin_pick)
         vl.addWidget(self.view_label)
 
         # ---- layout: controls left, strip + tabs right
@@ -650,7 +655,8 @@ class KeyframesPage(Page):
         from app.viewer3d import StudioViewer
 
         if self.viewer is None:
-            self.viewer = StudioViewer(on_keyframe_clicked=self._on_frustum_clicked)
+            self.viewer = StudioViewer(on_keyframe_clicked=self._on_frustum_clicked,
+                                       on_point_clicked=self._on_point_clicked)
             self.viewer.follow(self.ctx.run)  # the live frustum follows every pose run
             self._update_viewer()
         self.view_label.setText(f"3D view at {self.viewer.url} (127.0.0.1 only)")
@@ -660,6 +666,32 @@ class KeyframesPage(Page):
     def _on_frustum_clicked(self, kf_id: int) -> None:
         # called on viser's thread: hop to the GUI thread
         QTimer.singleShot(0, self, lambda: self.select_keyframe(kf_id))
+
+    def _on_point_clicked(self, X_world: Any) -> None:
+        # called on viser's thread: hop to the GUI thread
+        QTimer.singleShot(0, self, lambda: self.set_studio_origin(X_world))
+
+    def set_studio_origin(self, X_world: Any) -> None:
+        """Move the project's studio origin to a world point (axes kept): the outputs follow."""
+        if not self.origin_pick.isChecked():
+            return
+        from engine.errors import StudioTrackError
+        from engine.outputs.studio_frame import StudioFrame
+
+        proj = self.ctx.project
+        if proj is None:
+            self.ctx.log.warning("studio origin: open or create a project first")
+            return
+        try:
+            proj.studio_frame = (proj.studio_frame or StudioFrame()).with_origin_at(X_world)
+        except StudioTrackError as exc:
+            self.ctx.log.warning(str(exc))
+            return
+        proj.mark_dirty()
+        self.ctx.apply_project_setup()
+        x, y, z = (float(v) for v in X_world)
+        self.ctx.log.info(f"studio origin moved to the clicked point ({x:.3f}, {y:.3f}, "
+                          f"{z:.3f}) m (unsaved until File > Save)")
 
     def _update_viewer(self) -> None:
         if self.viewer is None or self.store is None:

@@ -48,8 +48,16 @@ def test_viewer_serves_http_and_lists_nodes(store: KeyframeStore) -> None:
             "/keyframes/kf_0001",
             "/keyframes/kf_0002",
             "/live_camera",
+            "/picks/point_0000",
+            "/picks/point_0001",
         ]
         np.testing.assert_allclose(v.nodes["/live_camera"].position, [0, 0, 0.5])
+        picked: list[np.ndarray] = []
+        v.on_point_clicked = picked.append
+        v.point_clicked(1)  # what the sphere's click handler calls
+        v.point_clicked(7)  # no such point: nothing
+        assert len(picked) == 1
+        np.testing.assert_allclose(picked[0], [0.1, 0.0, 2.0])
         v.set_store(store.subset([0, 1]))  # a deleted keyframe disappears
         assert "/keyframes/kf_0002" not in v.node_names()
     finally:
@@ -114,3 +122,23 @@ def test_live_frustum_follows_the_runs_view_feed(qtbot) -> None:  # type: ignore
     assert owner.publish is None  # the viewer stopped following
     assert _outputs_pose("dense")
     assert not _outputs_pose("kcf")
+
+
+def test_a_clicked_point_moves_the_studio_origin(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
+    from app.pages.keyframes import KeyframesPage
+    from engine.outputs.studio_frame import StudioFrame
+    from engine.project import new_project
+
+    ctx.set_project(new_project("p"))
+    page = KeyframesPage(ctx)
+    qtbot.addWidget(page)
+    page.set_studio_origin(np.array([1.0, 2.0, 0.0]))  # the option is off: nothing
+    assert ctx.project.studio_frame is None
+    page.origin_pick.setChecked(True)
+    page.set_studio_origin(np.array([1.0, 2.0, 0.0]))
+    frame = ctx.project.studio_frame
+    np.testing.assert_allclose(frame.matrix[:3, 3], [1.0, 2.0, 0.0])
+    np.testing.assert_allclose(frame.matrix[:3, :3], np.eye(3))
+    assert ctx.project.dirty
+    assert ctx.run.outputs_config.studio == frame
+    assert ctx.run.outputs_config.studio != StudioFrame()
