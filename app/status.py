@@ -37,6 +37,19 @@ _LEVEL = {
 }
 
 
+def stall_message(status: RunStatus, now_mono: float) -> str | None:
+    """``"no frame for N s (engine stalled)"`` once a running run has delivered no record
+    for :data:`STALL_S` and at least 5 frame periods; else None. The header and every page
+    use this one rule, so no page light stays green while the header says LOST."""
+    if not status.last_record_mono_s:
+        return None
+    period = 1.0 / status.target_fps if status.target_fps else 0.0
+    age = now_mono - status.last_record_mono_s
+    if age > max(STALL_S, 5 * period):
+        return f"no frame for {age:.1f} s (engine stalled)"
+    return None
+
+
 def _ms(x: float) -> str:
     return f"{x:.0f}" if x >= 10 else f"{x:.1f}"
 
@@ -144,12 +157,11 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
     if status.state is None:
         return HeaderState("STARTING", title, "waiting for the first frame", fps, False, lat,
                            chips, alarm=bool(failing))
-    period = 1.0 / status.target_fps if status.target_fps else 0.0
-    age = now - status.last_record_mono_s if status.last_record_mono_s else 0.0
     state = status.state.value
     message = status.message
-    if age > max(STALL_S, 5 * period):
-        state, message = "LOST", f"no frame for {age:.1f} s (engine stalled)"
+    stalled = stall_message(status, now)
+    if stalled is not None:
+        state, message = "LOST", stalled
     lost = state == "LOST"
     if lost:
         chips, failing = _targets(owner, status, holding=True)

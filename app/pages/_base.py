@@ -12,7 +12,9 @@ hands a run page what is new since it last drew:
 - :meth:`Page.run_changed` - a new run started (clear plots), and :meth:`Page.run_ended`;
 - :meth:`Page.run_faulted` - once, when the engine raised mid-run (the run stays open, the
   outputs hold the last pose flagged LOST, no record follows): the page says ERROR and never
-  leaves the last record looking live.
+  leaves the last record looking live;
+- :meth:`Page.run_stalled` - once, when a running run delivered no record for a while (the
+  header's rule, :func:`app.status.stall_message`): the page says LOST until the next draw.
 
 ``follows(info)`` says whether the page shows a run (default: any; a tracker's page: runs
 of its trackers). A page never keeps engine objects of its own: it asks ``ctx.run``.
@@ -25,6 +27,7 @@ from typing import Any
 
 from PySide6.QtWidgets import QWidget
 
+from app.status import stall_message
 from engine.loop import FrameRecord
 from engine.pipeline import RunInfo, RunPhase, RunStatus, TraceSample
 
@@ -48,6 +51,7 @@ class Page(QWidget):
         self._next_refresh = 0.0
         self._was_running = False
         self._faulted = False
+        self._stalled = False
         self.draws = 0  # records drawn (tests, benches)
 
     # ------------------------------------------------------------- overridables
@@ -64,6 +68,10 @@ class Page(QWidget):
 
     def run_faulted(self, status: RunStatus | None) -> None:
         """The engine raised mid-run (``status.error`` says what); the run is still open."""
+
+    def run_stalled(self, message: str) -> None:
+        """No record for a while (``message`` says how long); the next :meth:`draw` follows
+        when records come again. Pages with a state light say LOST here."""
 
     def add_samples(self, samples: list[TraceSample], missed: int) -> None:
         """Every processed frame's numbers since the last tick (``missed``: beyond the
@@ -85,6 +93,7 @@ class Page(QWidget):
                 self._cursor = 0
                 self._drawn_seq = None
                 self._faulted = False
+                self._stalled = False
                 self._next_refresh = 0.0  # read-outs follow a run change at once
                 self.run_changed(run.run_info)
             running = run.is_running
@@ -96,8 +105,16 @@ class Page(QWidget):
                 rec = run.latest() if running else None
                 if rec is not None and rec.seq != self._drawn_seq:
                     self._drawn_seq = rec.seq
+                    self._stalled = False
                     self.draws += 1
                     self.draw(rec)
+                elif running and not self._stalled and not self._faulted:
+                    status = run.status()
+                    stalled = (stall_message(status, time.monotonic() if now is None else now)
+                               if status is not None else None)
+                    if stalled is not None:
+                        self._stalled = True
+                        self.run_stalled(stalled)
                 p = run.pipeline if running else None
                 if not self._faulted and p is not None and p.phase is RunPhase.FAULT:
                     self._faulted = True  # after the last draw: the page ends on ERROR

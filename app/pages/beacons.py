@@ -448,6 +448,9 @@ class BeaconsPage(Page):
     def _on_finished(self, status: Any) -> None:
         self.run_ended(status)
 
+    def run_stalled(self, message: str) -> None:
+        self.status_label.setText(f"LOST: {message} — the estimate shown is not live")
+
     def run_faulted(self, status: Any) -> None:
         error = getattr(status, "error", None) or self.run.last_error or "engine error"
         # the engine already logged it: the page only says so

@@ -43,6 +43,7 @@ from app.pages._base import Page
 from engine.frames import Frame
 from engine.loop import FrameRecord
 from engine.pipeline import RunInfo, RunStatus, TraceSample
+from engine.results import TrackState
 from engine.trackers.base import Overlay
 from widgets.depth_view import VIEW_MODES, compose_view
 from widgets.image_view import ImageView
@@ -506,6 +507,11 @@ class LivePage(Page):
             self.image_view.set_overlay(None, None)
             self.image_view.set_info(f"stopped after {frames} frames: the last frame shown")
         self._update_controls()
+
+    def run_stalled(self, message: str) -> None:
+        """No record for a while: LOST (as the header says), the last frame marked not live."""
+        self.status_light.set_state(TrackState.LOST, "LOST · engine stalled")
+        self.image_view.set_info(f"{message}: the last frame, not live")
 
     def run_faulted(self, status: RunStatus | None) -> None:
         """The engine raised: ERROR, the reason, the last frame marked as not live."""

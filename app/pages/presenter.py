@@ -846,6 +846,11 @@ class PresenterPage(Page):
         self.canvas.update()
         self._update_buttons()
 
+    def run_stalled(self, message: str) -> None:
+        """No record for a while: LOST (as the header says); the box is not live."""
+        self.light.set_state(TrackState.LOST, "LOST · engine stalled")
+        self.readout.setText(f"⚠ {message}: the box shown is the last one, not live")
+
     def run_faulted(self, status: Any) -> None:
         """The engine raised: ERROR; the held box goes (it is not live), the reason shows."""
         error = getattr(status, "error", None) or self.run.last_error or "engine error"

@@ -881,6 +881,9 @@ class PtzPage(Page):
     def run_faulted(self, status: Any) -> None:
         self.live.run_faulted(status)
 
+    def run_stalled(self, message: str) -> None:
+        self.live.readout.setText(f"⚠ LOST: {message} — the markers shown are not live")
+
     def add_samples(self, samples: list[Any], missed: int) -> None:
         self.live.add_samples(samples, missed)
 

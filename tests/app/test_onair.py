@@ -271,3 +271,53 @@ def test_an_engine_error_says_error_on_its_page_never_tracking(qtbot, window, tr
         header.targets
     assert not [t for t in shown if "TRACKING" in t], (title, shown)
     assert any("ERROR" in t or "injected failure" in t for t in shown), (title, shown)
+
+
+@pytest.mark.parametrize("tracker", ["dense", "presenter", "ptz", "beacon-slam"])
+def test_a_stalled_engine_says_lost_on_its_page_as_in_the_header(qtbot, window, tracker) -> None:  # type: ignore[no-untyped-def]
+    """The tracker hangs mid-run (no record for seconds): the header says LOST (engine
+    stalled) and the page that drives the tracker says LOST too; nothing says TRACKING."""
+    import threading
+
+    from PySide6.QtWidgets import QLabel
+
+    from app.pages import page_for_tracker
+    from app.run_owner import RunRequest
+    from tests.app.fakes import FakeParams, FakeTracker
+    from widgets.status_light import StatusLight
+
+    release = threading.Event()
+
+    class Hanging(FakeTracker):
+        def track(self, frame):  # type: ignore[no-untyped-def]
+            if frame.index == 10:
+                release.wait(30)
+            return super().track(frame)
+
+    def hanging() -> FakeTracker:
+        t = Hanging(FakeParams())
+        t.name = tracker
+        return t
+
+    run = window.ctx.run
+    spec = page_for_tracker(tracker)
+    title = spec.title if spec is not None else "Live"
+    window.show_page(title)
+    page = window.page(title)
+    try:
+        with qtbot.waitSignal(run.started, timeout=30_000):
+            run.start(RunRequest(SMALL_STUDIO, tracker, page=title, tracker_factory=hanging))
+        qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
+                                 page.draws > 0)[1], timeout=30_000)
+        qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
+                                 "stalled" in window.header.state.message)[1], timeout=30_000)
+        window.display_tick(force_header=True)
+        shown = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
+        shown += [s.text for s in page.findChildren(StatusLight)]
+        header = window.header.state
+    finally:
+        release.set()
+        run.stop()
+    assert header.state == "LOST"
+    assert not [t for t in shown if "TRACKING" in t], (title, shown)
+    assert any("LOST" in t for t in shown), (title, shown)
