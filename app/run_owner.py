@@ -474,6 +474,7 @@ class RunOwner(QObject):
             self._log_event(ev)
         if p.phase is RunPhase.FAULT and not self._fault_reported:
             self._fault_reported = True
+            self._status_cache = None  # the fault is read at once, never a cached state
             self.last_error = p.status().error
             self.failed.emit(self.last_error)
 
@@ -502,6 +503,7 @@ class RunOwner(QObject):
             for ev in events:
                 self._log_event(ev)
         self.final_status = status
+        self._status_cache = None
         self._active = None
         req = self.request
         if req is not None and req.record_dir and status is not None:
@@ -523,6 +525,7 @@ class RunOwner(QObject):
             return
         assert isinstance(info, RunInfo)
         self.run_info = info
+        self._status_cache = None
         self._say("info", f"tracking {info.source_name} with {info.tracker_name}")
         self.started.emit(info)
 
