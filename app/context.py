@@ -15,6 +15,7 @@ persisted as versioned JSON by the engine.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,23 @@ class AppContext(QObject):
         self._project = project
         self.apply_project_setup()
         self.project_changed.emit(project)
+
+    def edit_project(self, change: Callable[[Any], None]) -> Any:
+        """Apply ``change`` to the open project (a new studio project when none is open), mark
+        it changed and put its set-up on air: the next run and the running one use it."""
+        from engine.project import new_project
+
+        proj = self._project
+        created = proj is None
+        if proj is None:
+            proj = new_project("studio")
+        change(proj)
+        proj.mark_dirty()
+        if created:
+            self.set_project(proj)
+        else:
+            self.apply_project_setup()
+        return proj
 
     def apply_project_setup(self) -> None:
         """Put the project's set-up on air: its lens file on every run's source (when the

@@ -239,19 +239,8 @@ class LensPage(Page):
         return None if proj is None else proj.lens
 
     def _set_lens(self, lens: Any, what: str) -> None:
-        from engine.project import new_project
-
-        proj = self.ctx.project
-        if proj is None:
-            proj = new_project("studio")
-            proj.lens = lens
-            proj.mark_dirty()
-            self.ctx.set_project(proj)
-        else:
-            proj.lens = lens
-            proj.mark_dirty()
-            self.ctx.apply_project_setup()  # the next run, and the running one, use it
-            self.show_lens()
+        self.ctx.edit_project(lambda proj: setattr(proj, "lens", lens))
+        self.show_lens()
         self.ctx.log.info(f"lens: {what}")
 
     def show_offsets(self) -> None:
@@ -275,18 +264,7 @@ class LensPage(Page):
         self.offset_status.setText(f"{nodal}; {frame} ({where})")
 
     def _edit_project(self, what: str, change: Any) -> None:
-        from engine.project import new_project
-
-        proj = self.ctx.project
-        if proj is None:
-            proj = new_project("studio")
-            change(proj)
-            proj.mark_dirty()
-            self.ctx.set_project(proj)
-        else:
-            change(proj)
-            proj.mark_dirty()
-            self.ctx.apply_project_setup()
+        self.ctx.edit_project(change)
         self.show_offsets()
         self.ctx.log.info(what)
 

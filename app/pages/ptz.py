@@ -750,17 +750,7 @@ CHAIN_OPTIONS = f",markers=1,distortion={CHAIN_K3},encoder=0"
 
 def save_ptz(ctx: Any, cal: Any, what: str) -> None:
     """Put a pan-tilt calibration into the project (a new one when none is open)."""
-    from engine.project import new_project
-
-    proj = ctx.project
-    if proj is None:
-        proj = new_project("studio")
-        proj.ptz = cal
-        proj.mark_dirty()
-        ctx.set_project(proj)
-    else:
-        proj.ptz = cal
-        proj.mark_dirty()
+    ctx.edit_project(lambda proj: setattr(proj, "ptz", cal))
     ctx.log.info(f"PTZ calibration: {what}")
 
 
@@ -821,7 +811,6 @@ class PtzPage(Page):
         camera's: ``T_world_cam`` identity), into the project and the outputs in force."""
         from engine.errors import StudioTrackError
         from engine.outputs.studio_frame import StudioFrame
-        from engine.project import new_project
 
         res = self.points.result
         if res is None:
@@ -833,16 +822,7 @@ class PtzPage(Page):
         except StudioTrackError as exc:
             self.points.status.setText(f"⚠ {exc}")
             return
-        proj = self.ctx.project
-        if proj is None:
-            proj = new_project("studio")
-            proj.studio_frame = frame
-            proj.mark_dirty()
-            self.ctx.set_project(proj)
-        else:
-            proj.studio_frame = frame
-            proj.mark_dirty()
-            self.ctx.apply_project_setup()
+        self.ctx.edit_project(lambda proj: setattr(proj, "studio_frame", frame))
         o = frame.matrix[:3, 3]
         self.ctx.log.info(f"studio frame from the DLT: origin ({o[0]:.3f}, {o[1]:.3f}, "
                           f"{o[2]:.3f}) m in the tracker's world")
