@@ -4,6 +4,13 @@ Data arrive per frame through ``append`` (cheap: a few numbers into a ring buffe
 redrawn only by ``redraw()``, which the page calls from its display timer (STYLE.md: display
 separate from arrival).
 
+Drawing stays cheap at any run length: the view ranges move in steps (time in whole
+:data:`TIME_STEP_S` pages, values only when the data leave the range or shrink well inside
+it), so the axes are re-laid out a few times a minute instead of on every redraw, and the
+grid is two light line items in the plot instead of pyqtgraph's axis-drawn grid (which
+re-plays across the whole plot whenever a curve changes: ~8 ms per axis per redraw
+offscreen). A plot the operator zoomed (mouse wheel on y) keeps the operator's range.
+
 Ground truth and the estimate usually live in different world frames (odometry starts at the
 identity). The plots therefore show ground truth aligned at the first frame that has both:
 ``T_align = T_est0 @ inv(T_gt0)``, ``T_gt_shown = T_align @ T_gt``. The "error vs GT"
@@ -28,6 +35,13 @@ GT_COLOUR = "#e6e9ee"
 #: smallest y span shown per unit: a still camera's sub-millimetre jitter stays a flat line
 #: instead of being stretched over the whole plot (with ticks like "5e-05")
 MIN_SPAN = {"m": 0.05, "°": 1.0, "mm": 5.0}
+#: the time axis shows whole pages of this many seconds (it moves once per page)
+TIME_STEP_S = 10.0
+#: a value range is kept while the data span at least this fraction of it
+SHRINK_BELOW = 0.3
+#: padding around the data when a value range is chosen (fraction of the data span)
+Y_PAD = 0.15
+GRID_ALPHA = (60, 25)  # major, minor grid lines
 POSE_CHANNELS = (
     ("x", "m"),
     ("y", "m"),
@@ -84,8 +98,118 @@ def pose_channels(T_world_cam: NDArray[np.float64] | None) -> NDArray[np.float64
     return np.array([T[0, 3], T[1, 3], T[2, 3], pan, tilt, roll])
 
 
-def _style_plot(plot: pg.PlotItem, name: str, unit: str, show_time: bool) -> None:
-    plot.showGrid(x=True, y=True, alpha=0.18)
+def time_range(t0: float, t1: float, step_s: float = TIME_STEP_S) -> tuple[float, float]:
+    """Whole pages of ``step_s`` covering [t0, t1] (at least one page from ``t0``'s)."""
+    lo = math.floor(t0 / step_s) * step_s
+    hi = max(lo + step_s, (math.floor(t1 / step_s) + 1) * step_s)
+    return lo, hi
+
+
+def value_range(lo: float, hi: float, current: tuple[float, float] | None,
+                min_span: float = 0.0) -> tuple[float, float] | None:
+    """The y range for data in [lo, hi]: ``current`` while it holds the data and is not
+    much larger (hysteresis), else the data padded; None when there is nothing finite."""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return None
+    span = max(hi - lo, min_span)
+    if span <= 0.0:  # a flat line without a unit span: a tenth of its value around it
+        span = 0.2 * abs(lo) or 1.0
+    if current is not None:
+        c0, c1 = current
+        inside = c0 <= lo and hi <= c1
+        if inside and (span >= SHRINK_BELOW * (c1 - c0) or (c1 - c0) <= 1.0001 * min_span):
+            return current
+    mid = 0.5 * (lo + hi)
+    half = 0.5 * span * (1.0 + 2.0 * Y_PAD)
+    return mid - half, mid + half
+
+
+class GridLines:
+    """A light grid at the axes' tick positions, as two line items in the plot (cheap to
+    paint), redrawn only when the view range or size changes."""
+
+    def __init__(self, plot: pg.PlotItem) -> None:
+        self.plot = plot
+        fg = pg.getConfigOption("foreground")
+        self.items: list[pg.PlotCurveItem] = []
+        for alpha in GRID_ALPHA:
+            colour = pg.mkColor(fg)
+            colour.setAlpha(alpha)
+            pen = pg.mkPen(colour, width=1)
+            pen.setCosmetic(True)
+            item = pg.PlotCurveItem(pen=pen, connect="pairs", skipFiniteCheck=True)
+            item.setZValue(-100)
+            plot.addItem(item, ignoreBounds=True)
+            self.items.append(item)
+        vb = plot.getViewBox()
+        vb.sigRangeChanged.connect(self.update)
+        vb.sigResized.connect(self.update)
+
+    def update(self, *_args: object) -> None:
+        vb = self.plot.getViewBox()
+        (x0, x1), (y0, y1) = vb.viewRange()
+        w = max(vb.width(), 1.0)
+        h = max(vb.height(), 1.0)
+        xs = self.plot.getAxis("bottom").tickValues(x0, x1, w)
+        ys = self.plot.getAxis("left").tickValues(y0, y1, h)
+        for level, item in enumerate(self.items):
+            vx = np.asarray(xs[level][1] if level < len(xs) else [], dtype=np.float64)
+            vy = np.asarray(ys[level][1] if level < len(ys) else [], dtype=np.float64)
+            px = np.empty(2 * (len(vx) + len(vy)))
+            py = np.empty_like(px)
+            n = 2 * len(vx)
+            px[0:n:2] = vx
+            px[1:n:2] = vx
+            py[0:n:2] = y0
+            py[1:n:2] = y1
+            px[n::2] = x0
+            px[n + 1::2] = x1
+            py[n::2] = vy
+            py[n + 1::2] = vy
+            item.setData(px, py)
+
+
+class RangeFollower:
+    """Moves one plot's view in steps (see the module docstring); stops following y once
+    the operator zooms it, until :meth:`reset`."""
+
+    def __init__(self, plot: pg.PlotItem, *, min_span: float = 0.0, follow_x: bool = True,
+                 follow_y: bool = True) -> None:
+        self.plot = plot
+        self.min_span = min_span
+        self.follow_x = follow_x
+        self.follow_y = follow_y
+        self.user_y = False
+        vb = plot.getViewBox()
+        vb.enableAutoRange(x=False, y=False)
+        vb.sigRangeChangedManually.connect(self._manual)
+
+    def _manual(self, mask: object) -> None:
+        self.user_y = True
+
+    def reset(self) -> None:
+        self.user_y = False
+
+    def update(self, t: NDArray[np.float64], values: NDArray[np.float64]) -> None:
+        vb = self.plot.getViewBox()
+        (cx0, cx1), (cy0, cy1) = vb.viewRange()
+        ok = np.isfinite(values)
+        x_new = y_new = None
+        if self.follow_x and len(t):
+            rng = time_range(float(t[0]), float(t[-1]))
+            if rng != (cx0, cx1):
+                x_new = rng
+        if self.follow_y and not self.user_y and ok.any():
+            v = values[ok]
+            rng_y = value_range(float(v.min()), float(v.max()), (cy0, cy1), self.min_span)
+            if rng_y is not None and rng_y != (cy0, cy1):
+                y_new = rng_y
+        if x_new is not None or y_new is not None:
+            vb.setRange(xRange=x_new, yRange=y_new, padding=0.0, disableAutoRange=True)
+
+
+def _style_plot(plot: pg.PlotItem, name: str, unit: str, show_time: bool) -> GridLines:
+    grid = GridLines(plot)
     plot.setMenuEnabled(False)
     plot.hideButtons()
     left = plot.getAxis("left")
@@ -98,13 +222,14 @@ def _style_plot(plot: pg.PlotItem, name: str, unit: str, show_time: bool) -> Non
     bottom.enableAutoSIPrefix(False)
     # before data arrive show 0-10 s: the default 0-1 range puts "0.20.40.60.8" on a narrow
     # plot; auto-range stays on and takes over with the first samples
-    plot.getViewBox().setRange(xRange=(0.0, 10.0), padding=0.0, disableAutoRange=False)
+    plot.getViewBox().setRange(xRange=(0.0, TIME_STEP_S), padding=0.0)
     if show_time:
         plot.setLabel("bottom", "time (s)")
     else:  # x-linked rows above the bottom one: the time values would only repeat
         bottom.setStyle(showValues=False)
         bottom.setHeight(6)
     plot.setMouseEnabled(x=False, y=True)
+    return grid
 
 
 class PosePlots(pg.GraphicsLayoutWidget):
@@ -122,6 +247,7 @@ class PosePlots(pg.GraphicsLayoutWidget):
         self._last_t: float | None = None
         self.has_gt = False
         self.plots: list[pg.PlotItem] = []
+        self.grids: list[GridLines] = []
         self.est_curves: list[pg.PlotCurveItem] = []
         self.gt_curves: list[pg.PlotCurveItem] = []
         for row in range(3):
@@ -129,7 +255,7 @@ class PosePlots(pg.GraphicsLayoutWidget):
                 k = col * 3 + row
                 name, unit = POSE_CHANNELS[k]
                 plot = self.addPlot(row=row, col=col)
-                _style_plot(plot, name, unit, show_time=row == 2)
+                self.grids.append(_style_plot(plot, name, unit, show_time=row == 2))
                 gt = pg.PlotCurveItem(
                     pen=pg.mkPen(GT_COLOUR, width=1.2, style=Qt.PenStyle.DashLine),
                     connect="finite",
@@ -150,6 +276,10 @@ class PosePlots(pg.GraphicsLayoutWidget):
         self.gt_curves = [self.gt_curves[i] for i in order]
         for plot in self.plots[1:]:
             plot.setXLink(self.plots[0])
+        # the top plot moves the shared time axis; every plot follows its own values
+        self.followers = [RangeFollower(p, min_span=MIN_SPAN.get(POSE_CHANNELS[k][1], 0.0),
+                                        follow_x=k == 0)
+                          for k, p in enumerate(self.plots)]
         self.no_data: list[pg.TextItem] = []
         for plot in self.plots:
             text = pg.TextItem("no pose yet", color="#6b717c", anchor=(0.5, 0.5))
@@ -169,6 +299,8 @@ class PosePlots(pg.GraphicsLayoutWidget):
         self._t0 = None
         self._last_t = None
         self.has_gt = False
+        for f in self.followers:
+            f.reset()
         self.redraw()
 
     def append(
@@ -217,6 +349,9 @@ class PosePlots(pg.GraphicsLayoutWidget):
             else:
                 self.gt_curves[k].clear()
             has = bool(len(t)) and bool(np.any(np.isfinite(est[:, k])))
+            if has:
+                both = est[:, k] if not self.has_gt else np.concatenate([est[:, k], gt[:, k]])
+                self.followers[k].update(t, both)
             if not has:  # e.g. a box tracker: say so instead of showing empty axes
                 (x0, x1), (y0, y1) = self.plots[k].viewRange()
                 self.no_data[k].setPos((x0 + x1) / 2, (y0 + y1) / 2)
@@ -241,18 +376,22 @@ class ResidualPlots(pg.GraphicsLayoutWidget):
         self.setMinimumSize(360, 140)
         self.data = RingBuffer(capacity, 3)
         self.plots: list[pg.PlotItem] = []
+        self.grids: list[GridLines] = []
         self.curves: list[pg.PlotCurveItem] = []
         for col, (name, unit, colour) in enumerate(self.CHANNELS):
             plot = self.addPlot(row=0, col=col)
-            _style_plot(plot, name, unit, show_time=True)
+            self.grids.append(_style_plot(plot, name, unit, show_time=True))
             curve = pg.PlotCurveItem(pen=pg.mkPen(colour, width=1.6), connect="finite")
             plot.addItem(curve)
             self.plots.append(plot)
             self.curves.append(curve)
+        self.plots[2].getViewBox().setLimits(yMin=0.0)  # a distance: never below zero
+        self.followers = [RangeFollower(p, min_span=MIN_SPAN.get(unit, 0.0),
+                                        follow_y=k != 1)
+                          for k, (p, (_, unit, _)) in enumerate(zip(self.plots, self.CHANNELS,
+                                                                     strict=True))]
         self.plots[1].setYRange(0, 100, padding=0.02)
         self.plots[1].setMouseEnabled(x=False, y=False)
-        self.plots[1].enableAutoRange(axis="y", enable=False)
-        self.plots[2].getViewBox().setLimits(yMin=0.0)  # a distance: never below zero
         # no x-link: a tracker without residuals would pin the shared range to [0, 1]
         self.no_data: list[pg.TextItem] = []
         for plot in self.plots:
@@ -268,6 +407,8 @@ class ResidualPlots(pg.GraphicsLayoutWidget):
         self.data.clear()
         self._t0 = None
         self._last_t = None
+        for f in self.followers:
+            f.reset()
         self.redraw()
 
     def append(
@@ -294,6 +435,8 @@ class ResidualPlots(pg.GraphicsLayoutWidget):
             has = bool(len(t)) and bool(np.any(np.isfinite(v[:, k])))
             if has:
                 curve.setData(t, v[:, k])
+                ok = np.isfinite(v[:, k])
+                self.followers[k].update(t[ok], v[:, k])
             else:
                 curve.clear()
                 (x0, x1), (y0, y1) = self.plots[k].viewRange()

@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from engine.geometry import R_from_pan_tilt_roll_deg, make_T
-from widgets.pose_plots import PosePlots, ResidualPlots, RingBuffer, pose_channels
+from widgets.pose_plots import (
+    PosePlots,
+    ResidualPlots,
+    RingBuffer,
+    pose_channels,
+    time_range,
+    value_range,
+)
 
 
 def test_ring_buffer_keeps_the_newest_in_order() -> None:
@@ -73,3 +80,73 @@ def test_residual_plots_say_when_a_tracker_has_no_data(qtbot) -> None:  # type: 
     x0, x1 = plots.plots[2].viewRange()[0]
     assert x0 <= 0.0
     assert x1 >= 4 / 30
+
+
+def test_time_axis_moves_in_whole_pages() -> None:
+    assert time_range(0.0, 0.3) == (0.0, 10.0)
+    assert time_range(0.0, 9.9) == (0.0, 10.0)
+    assert time_range(0.0, 10.0) == (0.0, 20.0)
+    assert time_range(12.5, 71.0) == (10.0, 80.0)
+
+
+def test_value_range_holds_until_the_data_leave_or_shrink() -> None:
+    first = value_range(0.0, 1.0, None)
+    assert first is not None
+    assert first[0] < 0.0 < 1.0 < first[1]
+    assert value_range(0.1, 0.9, first) == first  # inside, not much smaller: kept
+    moved = value_range(0.0, 1.5, first)  # left the range: a new one around the data
+    assert moved is not None
+    assert moved != first
+    assert moved[1] > 1.5
+    shrunk = value_range(0.4, 0.45, first)  # a tenth of the span: zoom in
+    assert shrunk is not None
+    assert shrunk[1] - shrunk[0] < 0.2
+    # a unit's smallest span: a still camera's jitter stays a flat line
+    small = value_range(1.0, 1.0001, None, min_span=0.05)
+    assert small is not None
+    assert small[1] - small[0] >= 0.05
+    assert value_range(1.0, 1.0002, small, min_span=0.05) == small
+    assert value_range(float("nan"), 1.0, None) is None
+
+
+def test_plot_ranges_follow_the_data_in_steps_and_keep_a_user_zoom(qtbot) -> None:  # type: ignore[no-untyped-def]
+    plots = ResidualPlots(capacity=600)
+    qtbot.addWidget(plots)
+    for i in range(30):
+        plots.append(i / 30, 1.0 + 0.01 * i, 0.9, 0.001)
+    plots.redraw()
+    (x0, x1), (y0, y1) = plots.plots[0].viewRange()
+    assert (x0, x1) == (0.0, 10.0)
+    assert y0 <= 1.0
+    assert y1 >= 1.29
+    before = plots.plots[0].viewRange()
+    plots.append(1.0, 1.1, 0.9, 0.001)  # inside the range: nothing moves
+    plots.redraw()
+    assert plots.plots[0].viewRange() == before
+    assert plots.plots[1].viewRange()[1] == pytest.approx((-2.0, 102.0))  # inliers: fixed
+    # the operator zooms y: the plot keeps that range while data come in
+    vb = plots.plots[0].getViewBox()
+    vb.sigRangeChangedManually.emit([False, True])
+    vb.setYRange(5.0, 6.0, padding=0.0)
+    plots.append(1.1, 1.2, 0.9, 0.001)
+    plots.redraw()
+    assert plots.plots[0].viewRange()[1] == pytest.approx((5.0, 6.0))
+    plots.clear_data()  # a new run follows again
+    plots.append(0.0, 1.0, 0.9, 0.001)
+    plots.redraw()
+    assert plots.plots[0].viewRange()[1][0] < 1.0 < plots.plots[0].viewRange()[1][1]
+
+
+def test_grid_lines_sit_at_the_ticks(qtbot) -> None:  # type: ignore[no-untyped-def]
+    plots = PosePlots(capacity=100)
+    qtbot.addWidget(plots)
+    plots.resize(600, 400)
+    plots.plots[0].getViewBox().setRange(xRange=(0.0, 10.0), yRange=(0.0, 1.0), padding=0.0)
+    grid = next(g for g in plots.grids if g.plot is plots.plots[0])
+    assert all(item in plots.plots[0].items for item in grid.items)
+    x, y = grid.items[0].getData()
+    assert x is not None
+    assert len(x) >= 4
+    assert len(x) % 2 == 0
+    assert np.nanmin(y) == pytest.approx(0.0)
+    assert np.nanmax(y) == pytest.approx(1.0)
