@@ -176,7 +176,8 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
         ctx.run.start(RunRequest(source, tracker, realtime=True, page="Live"))
 
     def cpu_by_thread() -> dict[str, float]:
-        """CPU seconds so far of the GUI, engine and sender threads (psutil, Linux)."""
+        """CPU seconds so far of the GUI, engine, sender and studio render threads
+        (psutil, Linux; ``render`` is NaN for a source that renders on the engine thread)."""
         import psutil
 
         ids = {"gui": threading.main_thread().native_id, "engine": ctx.run.engine_thread_id}
@@ -184,6 +185,9 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
         out = sink.outputs if sink is not None else None
         th = getattr(out, "_thread", None)
         ids["sender"] = getattr(th, "native_id", None)
+        # the built-in studio renders ahead on its own thread, as a camera (GIL released)
+        ids["render"] = next((t.native_id for t in threading.enumerate()
+                              if t.name == "studio-render-ahead"), None)
         times = {t.id: t.user_time + t.system_time for t in psutil.Process().threads()}
         return {k: times.get(v, float("nan")) if v is not None else float("nan")
                 for k, v in ids.items()}

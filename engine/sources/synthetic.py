@@ -49,6 +49,10 @@ occluder (0)           1: a grey panel (0.7 x 1.3 m) moving 1.6 m in front of th
 cover_start            lens covered (dark image, no depth) from this frame ...
 cover_frames (20)      ... for this many frames (loss-and-relock tests)
 threads (1)            renderer threads per frame (0: all cores; 1 is steadier on a busy CPU)
+ahead (1)              frames rendered ahead on a worker thread while the consumer tracks, as a
+                       camera exposes the next frame meanwhile (``engine.sources.ahead``; every
+                       frame is rendered, capture time = when it is handed out); 0: rendered
+                       on the consumer's thread when asked for
 zoom                   sweep: a 3x zoom lens swept wide -> tele -> wide (``engine.studio.zoom``:
                        a known lens file, frames carry the zoom/focus encoders); N: held at
                        encoder value N (0..65535)
@@ -73,6 +77,9 @@ PRESENTER_MODES = ("walk", "still", "leave")
 PERSON2_MODES = ("none", "cross", "behind", "beside")
 LIGHTING_NAMES = ("default", "warm", "cool", "dim", "bright", "ramp", "side")
 
+
+#: frames the studio renders ahead of the consumer (the ``ahead`` option)
+DEFAULT_AHEAD = 1
 
 #: the largest integer option accepted (frame counts, seeds): beyond it len() overflows
 _INT_MAX = 10**9
@@ -184,6 +191,7 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "cover_start": _int(0),
     "cover_frames": _int(0),
     "threads": _int(0, 256),
+    "ahead": _int(0, 8),
     "zoom": _zoom,
     "zoom_cycle_s": _float(0.0, open_lo=True),
 }
@@ -344,10 +352,11 @@ class SyntheticSource(Source):
     nominal_fps = 30.0
     live = False
 
-    def __init__(self, config: Any = None) -> None:
+    def __init__(self, config: Any = None, *, ahead: int = DEFAULT_AHEAD) -> None:
         from engine.studio.sim import Studio, StudioConfig
 
         self.config = config if config is not None else StudioConfig()
+        self.ahead = int(ahead)
         self.studio = Studio(self.config)
         self.nominal_fps = self.config.fps
         extras = []
@@ -363,10 +372,11 @@ class SyntheticSource(Source):
 
     @classmethod
     def from_options(cls, opts: dict[str, str]) -> SyntheticSource:
-        return cls(config_from_options(opts))
+        ahead = parse_synthetic_options(opts).get("ahead", DEFAULT_AHEAD)
+        return cls(config_from_options(opts), ahead=ahead)
 
     def with_config(self, **changes: Any) -> SyntheticSource:
-        return SyntheticSource(replace(self.config, **changes))
+        return SyntheticSource(replace(self.config, **changes), ahead=self.ahead)
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -383,8 +393,12 @@ class SyntheticSource(Source):
         return self.studio.frame(index, T_world_cam)
 
     def frames(self) -> Iterator[Frame]:
-        for i in range(len(self)):
-            yield self.studio.frame(i)
+        """Every frame in order; with ``ahead`` the next ones render on a worker thread
+        while the consumer works (:func:`engine.sources.ahead.read_ahead`)."""
+        from engine.sources.ahead import read_ahead
+
+        return read_ahead(self.studio.frame, len(self), depth=self.ahead,
+                          name="studio-render-ahead")
 
 
 SOURCES = (
