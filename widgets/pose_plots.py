@@ -29,6 +29,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QWidget
 
 from engine.geometry import pan_tilt_roll_deg
+from widgets.plot_grid import GridLines
 
 EST_COLOURS = ("#ff6b6b", "#51cf66", "#4dabf7", "#ff6b6b", "#51cf66", "#4dabf7")
 GT_COLOUR = "#e6e9ee"
@@ -41,7 +42,6 @@ TIME_STEP_S = 10.0
 SHRINK_BELOW = 0.3
 #: padding around the data when a value range is chosen (fraction of the data span)
 Y_PAD = 0.15
-GRID_ALPHA = (60, 25)  # major, minor grid lines
 POSE_CHANNELS = (
     ("x", "m"),
     ("y", "m"),
@@ -122,51 +122,6 @@ def value_range(lo: float, hi: float, current: tuple[float, float] | None,
     mid = 0.5 * (lo + hi)
     half = 0.5 * span * (1.0 + 2.0 * Y_PAD)
     return mid - half, mid + half
-
-
-class GridLines:
-    """A light grid at the axes' tick positions, as two line items in the plot (cheap to
-    paint), redrawn only when the view range or size changes."""
-
-    def __init__(self, plot: pg.PlotItem) -> None:
-        self.plot = plot
-        fg = pg.getConfigOption("foreground")
-        self.items: list[pg.PlotCurveItem] = []
-        for alpha in GRID_ALPHA:
-            colour = pg.mkColor(fg)
-            colour.setAlpha(alpha)
-            pen = pg.mkPen(colour, width=1)
-            pen.setCosmetic(True)
-            item = pg.PlotCurveItem(pen=pen, connect="pairs", skipFiniteCheck=True)
-            item.setZValue(-100)
-            plot.addItem(item, ignoreBounds=True)
-            self.items.append(item)
-        vb = plot.getViewBox()
-        vb.sigRangeChanged.connect(self.update)
-        vb.sigResized.connect(self.update)
-
-    def update(self, *_args: object) -> None:
-        vb = self.plot.getViewBox()
-        (x0, x1), (y0, y1) = vb.viewRange()
-        w = max(vb.width(), 1.0)
-        h = max(vb.height(), 1.0)
-        xs = self.plot.getAxis("bottom").tickValues(x0, x1, w)
-        ys = self.plot.getAxis("left").tickValues(y0, y1, h)
-        for level, item in enumerate(self.items):
-            vx = np.asarray(xs[level][1] if level < len(xs) else [], dtype=np.float64)
-            vy = np.asarray(ys[level][1] if level < len(ys) else [], dtype=np.float64)
-            px = np.empty(2 * (len(vx) + len(vy)))
-            py = np.empty_like(px)
-            n = 2 * len(vx)
-            px[0:n:2] = vx
-            px[1:n:2] = vx
-            py[0:n:2] = y0
-            py[1:n:2] = y1
-            px[n::2] = x0
-            px[n + 1::2] = x1
-            py[n::2] = vy
-            py[n + 1::2] = vy
-            item.setData(px, py)
 
 
 class RangeFollower:

@@ -40,6 +40,7 @@ from PySide6.QtWidgets import (
 
 from app.pages import PageSpec
 from app.pages._base import Page
+from widgets.plot_grid import GridLines
 
 ELLIPSE_SIGMA = 2.0
 BEACON_COLOR = (255, 200, 60)
@@ -83,7 +84,7 @@ class BeaconsPage(Page):
         # ---- map
         self.map_plot = pg.PlotWidget()
         self.map_plot.setAspectLocked(True)
-        self.map_plot.showGrid(x=True, y=True, alpha=0.25)
+        GridLines(self.map_plot.getPlotItem())  # cheap to repaint (widgets.plot_grid)
         self.map_plot.setLabel("bottom", "x (m)")
         self.map_plot.setLabel("left", "y (m)")
         self.map_plot.addLegend(offset=(8, 8))
@@ -108,7 +109,7 @@ class BeaconsPage(Page):
 
         # ---- error over time
         self.err_plot = pg.PlotWidget()
-        self.err_plot.showGrid(x=True, y=True, alpha=0.25)
+        GridLines(self.err_plot.getPlotItem())
         self.err_plot.setLabel("bottom", "time step")
         self.err_plot.setLabel("left", "position error (m)")
         self.err_plot.getAxis("left").enableAutoSIPrefix(False)

@@ -48,6 +48,7 @@ from PySide6.QtWidgets import (
 
 from app.pages import PageSpec
 from app.pages._base import Page
+from widgets.plot_grid import GridLines
 
 COLUMNS = ("zoom", "focus", "f (mm)", "f (px)", "k1", "k2", "pupil (m)", "rms (px)", "note")
 
@@ -97,7 +98,7 @@ class LensPage(Page):
         for pl, unit in ((self.f_plot, "f (mm)"), (self.k_plot, "k1")):
             pl.setLabel("bottom", "zoom encoder (raw)")
             pl.setLabel("left", unit)
-            pl.showGrid(x=True, y=True, alpha=0.2)
+            GridLines(pl)  # cheap to repaint (widgets.plot_grid)
             for side in ("bottom", "left"):
                 pl.getAxis(side).enableAutoSIPrefix(False)
         self.f_curve = self.f_plot.plot(pen=pg.mkPen(90, 170, 255, width=2))

@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (
 from app.pages import PageSpec
 from app.pages._base import Page
 from app.status import header_state
+from widgets.plot_grid import GridLines
 
 REFRESH_MS = 500
 HISTORY = 240  # samples of the rate/memory plots (2 minutes at 2 Hz)
@@ -130,7 +131,7 @@ class OperationsPage(Page):
         self.plot.setLabel("left", "frames/s")
         self.plot.setLabel("bottom", "seconds ago")
         self.plot.addLegend(offset=(5, 5))
-        self.plot.showGrid(x=True, y=True, alpha=0.2)
+        self.grid = GridLines(self.plot.getPlotItem())  # cheap to repaint
         self.fps_curve = self.plot.plot(pen=pg.mkPen("#4caf50", width=2), name="tracker fps")
         self.rate_curve = self.plot.plot(pen=pg.mkPen("#2196f3", width=2), name="output Hz")
         self.fps_hist: deque[float] = deque(maxlen=HISTORY)

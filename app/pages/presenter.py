@@ -61,6 +61,7 @@ from app.pages._base import Page
 from engine.results import TrackState
 from widgets.param_form import ParamForm
 from widgets.patch_canvas import PATCH_COLOURS, PatchCanvas
+from widgets.plot_grid import GridLines
 from widgets.status_light import StatusLight
 
 CELL_PX = 9
@@ -287,7 +288,7 @@ class PresenterPage(Page):
             plot.setMinimumWidth(200)
             plot.setLabel("left", left_label)
             plot.setLabel("bottom", "frame (last 300)")
-            plot.showGrid(x=True, y=True, alpha=0.18)
+            GridLines(plot)  # cheap to repaint (widgets.plot_grid)
             for side in ("left", "bottom"):
                 plot.getAxis(side).enableAutoSIPrefix(False)
 
@@ -843,6 +844,9 @@ class PresenterPage(Page):
         self.light.set_state(None, "STOPPED")
         self.readout.setText("Not tracking.")
         self.control_label.setText("Robot-camera control: shown while tracking.")
+        if self.message.text() == "tracking started":  # said at Start: not true any more
+            self.message.setText("tracking stopped")
+            self.message.setStyleSheet("color: #b9bec7;")
         self.canvas.update()
         self._update_buttons()
 

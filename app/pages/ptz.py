@@ -51,6 +51,7 @@ from PySide6.QtWidgets import (
 from app.pages import PageSpec
 from app.pages._base import Page
 from engine.shared_data import shared_data_dir
+from widgets.plot_grid import GridLines
 
 HISTORY = 3000
 MODEL_COLOURS = [(230, 230, 230), (255, 90, 90), (90, 200, 255), (255, 200, 60),
@@ -65,7 +66,7 @@ def _axes(plot: Any, bottom: str, left: str) -> None:
     plot.setLabel("left", left)
     for side in ("bottom", "left"):
         plot.getAxis(side).enableAutoSIPrefix(False)
-    plot.showGrid(x=True, y=True, alpha=0.18)
+    GridLines(plot)  # cheap to repaint (widgets.plot_grid)
 
 
 class ClickImage(pg.PlotWidget):
