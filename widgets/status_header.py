@@ -59,6 +59,18 @@ class HeaderState:
 IDLE = HeaderState("STOPPED", "no run", "press Start on a page to track")
 
 
+def _restyle(widget: QWidget, css: str) -> None:
+    """Set a style sheet only when it changes: each set re-polishes the widget and its
+    children (the header updates 10 times a second, its styles rarely)."""
+    if widget.styleSheet() != css:
+        widget.setStyleSheet(css)
+
+
+def _retext(label: QLabel, text: str) -> None:
+    if label.text() != text:
+        label.setText(text)
+
+
 def _label(name: str, text: str = "", *, mono: bool = False) -> QLabel:
     lab = QLabel(text)
     lab.setObjectName(name)
@@ -146,24 +158,24 @@ class StatusHeader(QFrame):
             return
         self._state = st
         colour = STATE_COLOURS.get(st.state, "#4a505b")
-        self.state_label.setText(st.state)
-        self.state_label.setStyleSheet(
-            f"background: {colour}; color: white; font-size: 20pt; font-weight: 800; "
-            "border-radius: 5px; padding: 0 10px;")
+        _retext(self.state_label, st.state)
+        _restyle(self.state_label,
+                 f"background: {colour}; color: white; font-size: 20pt; font-weight: 800; "
+                 "border-radius: 5px; padding: 0 10px;")
         self.state_label.setAccessibleName(f"tracking state {st.state}")
-        self.title_label.setText(st.title)
+        _retext(self.title_label, st.title)
         self.title_label.setToolTip(st.title)
-        self.message_label.setText(st.message)
+        _retext(self.message_label, st.message)
         self.message_label.setToolTip(st.message)
-        self.message_label.setStyleSheet(  # an alarm's reason reads as one
-            f"color: {ALARM_MESSAGE_COLOUR}; font-weight: bold;" if st.alarm
-            else f"color: {MESSAGE_COLOUR};")
+        _restyle(self.message_label,  # an alarm's reason reads as one
+                 f"color: {ALARM_MESSAGE_COLOUR}; font-weight: bold;" if st.alarm
+                 else f"color: {MESSAGE_COLOUR};")
         fps_colour = "#ffb020" if st.behind else "#e6e9ee"
-        self.fps_label.setText(st.fps_text + ("  falling behind" if st.behind else ""))
-        self.fps_label.setStyleSheet(f"font-family: monospace; color: {fps_colour};"
-                                     + (" font-weight: bold;" if st.behind else ""))
-        self.latency_label.setText(st.latency_text)
-        self.timecode_label.setText(f"TC {st.timecode}" if st.timecode else "TC –")
+        _retext(self.fps_label, st.fps_text + ("  falling behind" if st.behind else ""))
+        _restyle(self.fps_label, f"font-family: monospace; color: {fps_colour};"
+                 + (" font-weight: bold;" if st.behind else ""))
+        _retext(self.latency_label, st.latency_text)
+        _retext(self.timecode_label, f"TC {st.timecode}" if st.timecode else "TC –")
         self.timecode_label.setToolTip("timecode of the latest record" if st.timecode
                                        else "no timecode on this source")
         self._set_targets(st.targets)
@@ -190,12 +202,11 @@ class StatusHeader(QFrame):
                 continue
             t = targets[i]
             lab.setVisible(True)
-            lab.setText(f"{t.name}\n{t.text}")
+            _retext(lab, f"{t.name}\n{t.text}")
             lab.setToolTip(t.tooltip or t.text)
             lab.setProperty("level", t.level)
-            lab.setStyleSheet(
-                f"background: {LEVEL_COLOURS.get(t.level, '#3a3f48')}; color: white; "
-                "border-radius: 4px; padding: 2px 6px; font-size: 9pt;")
+            _restyle(lab, f"background: {LEVEL_COLOURS.get(t.level, '#3a3f48')}; color: white; "
+                     "border-radius: 4px; padding: 2px 6px; font-size: 9pt;")
 
     def _toggle_flash(self) -> None:
         self._flash_on = not self._flash_on
@@ -204,8 +215,8 @@ class StatusHeader(QFrame):
     def _apply_frame(self) -> None:
         border = ALARM_COLOUR if (self._state.alarm and self._flash_on) else "#2b2f37"
         width = 3 if self._state.alarm else 1
-        self.setStyleSheet(f"QFrame#status_header {{ background: #1b1d22; border: {width}px "
-                           f"solid {border}; border-radius: 4px; }}")
+        _restyle(self, f"QFrame#status_header {{ background: #1b1d22; border: {width}px "
+                       f"solid {border}; border-radius: 4px; }}")
 
     @property
     def flashing(self) -> bool:

@@ -84,6 +84,7 @@ def test_drag_main_region_and_three_patches_then_track(qtbot, ctx) -> None:  # t
     # nothing stale after Stop
     assert page.light.text == "STOPPED"
     assert page.readout.text() == "Not tracking."
+    assert page.message.text() != "tracking started"  # the Start message does not stay
     assert page.start_button.isEnabled()
     assert not page.stop_button.isEnabled()
 
