@@ -141,8 +141,10 @@ def header_state(owner: Any, now_mono: float | None = None) -> HeaderState:
     if status is None or status.phase is RunPhase.STARTING:
         return HeaderState("STARTING", title, "opening the source and the tracker",
                            targets=chips, alarm=bool(failing))
-    fps = f"{status.fps:5.1f} fps" + (f" / {status.target_fps:.2f}" if status.target_fps
-                                      else "")
+    # the target as the rate is named (30, 29.97, 23.98): short enough to leave the reason
+    # line its width at 1280 px
+    target = f"{status.target_fps:.2f}".rstrip("0").rstrip(".")
+    fps = f"{status.fps:5.1f} fps" + (f" / {target}" if status.target_fps else "")
     lat = "latency –"
     out = owner.output_health()
     if out is not None and out.latency is not None:

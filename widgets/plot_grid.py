@@ -19,6 +19,19 @@ import pyqtgraph as pg
 
 #: alpha (0..255) of the major and minor grid lines
 GRID_ALPHA = (60, 25)
+#: minor lines closer than this (px) are left out (a small plot stays readable)
+MIN_MINOR_SPACING_PX = 12.0
+
+
+def _level(ticks: list[tuple[float, list[float]]], level: int, span: float,
+           length_px: float) -> np.ndarray:
+    """The tick values of one level; a minor level too dense on screen gives none."""
+    if level >= len(ticks):
+        return np.zeros(0)
+    spacing, values = ticks[level]
+    if level > 0 and span > 0 and spacing / span * length_px < MIN_MINOR_SPACING_PX:
+        return np.zeros(0)
+    return np.asarray(values, dtype=np.float64)
 
 
 class GridLines:
@@ -52,8 +65,8 @@ class GridLines:
         xs = self.plot.getAxis("bottom").tickValues(x0, x1, w)
         ys = self.plot.getAxis("left").tickValues(y0, y1, h)
         for level, item in enumerate(self.items):
-            vx = np.asarray(xs[level][1] if level < len(xs) else [], dtype=np.float64)
-            vy = np.asarray(ys[level][1] if level < len(ys) else [], dtype=np.float64)
+            vx = _level(xs, level, x1 - x0, w)
+            vy = _level(ys, level, y1 - y0, h)
             px = np.empty(2 * (len(vx) + len(vy)))
             py = np.empty_like(px)
             n = 2 * len(vx)

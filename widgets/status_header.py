@@ -75,20 +75,24 @@ def _label(name: str, text: str = "", *, mono: bool = False) -> QLabel:
     lab = QLabel(text)
     lab.setObjectName(name)
     if mono:
-        lab.setStyleSheet("font-family: monospace;")
+        lab.setStyleSheet("font-family: monospace; font-size: 9pt;")
     return lab
 
 
 class _ElidedLabel(QLabel):
-    """One line that ends in "…" when it does not fit (``text()`` stays the whole text)."""
+    """One line that elides with "…" when it does not fit (``text()`` stays the whole
+    text): at the end, or in the middle (``mode``) so that a reason's end stays readable."""
+
+    def __init__(self, mode: Qt.TextElideMode = Qt.TextElideMode.ElideRight) -> None:
+        super().__init__()
+        self.elide_mode = mode
 
     def paintEvent(self, event: QPaintEvent) -> None:
         painter = QPainter(self)
         rect = self.contentsRect()
         painter.setFont(self.font())
         painter.setPen(self.palette().color(QPalette.ColorRole.WindowText))
-        text = self.fontMetrics().elidedText(self.text(), Qt.TextElideMode.ElideRight,
-                                             rect.width())
+        text = self.fontMetrics().elidedText(self.text(), self.elide_mode, rect.width())
         painter.drawText(rect, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, text)
         painter.end()
 
@@ -105,12 +109,13 @@ class StatusHeader(QFrame):
         self.state_label = QLabel("STOPPED")
         self.state_label.setObjectName("header_state")
         self.state_label.setAlignment(Qt.AlignmentFlag.AlignCenter)
-        self.state_label.setMinimumWidth(190)
+        self.state_label.setMinimumWidth(160)
         self.state_label.setFixedHeight(46)
         self.title_label = _ElidedLabel()
         self.title_label.setObjectName("header_title")
         self.title_label.setStyleSheet("font-weight: bold; font-size: 12pt; color: #e6e9ee;")
-        self.message_label = _ElidedLabel()
+        # "OUTPUT FAILING: freed:192.0.2.1:40000: Invalid argument": what fails and why
+        self.message_label = _ElidedLabel(Qt.TextElideMode.ElideMiddle)
         self.message_label.setObjectName("header_message")
         self.message_label.setStyleSheet(f"color: {MESSAGE_COLOUR};")
         for lab in (self.title_label, self.message_label):
@@ -131,15 +136,22 @@ class StatusHeader(QFrame):
         nums.addWidget(self.latency_label)
         self.targets_box = QHBoxLayout()
         self.targets_box.setSpacing(4)
+        self.targets_box.addStretch(1)
         self.target_labels: list[QLabel] = []
+        self._target_texts: list[str] = []
+        # one-line chips above the timecode: the reason line keeps the width it needs to be
+        # read whole at 1280 px (an output failure's target and reason)
+        right = QVBoxLayout()
+        right.setSpacing(2)
+        right.addLayout(self.targets_box)
+        right.addWidget(self.timecode_label, 0, Qt.AlignmentFlag.AlignRight)
         row = QHBoxLayout(self)
         row.setContentsMargins(8, 4, 8, 4)
-        row.setSpacing(12)
+        row.setSpacing(8)
         row.addWidget(self.state_label)
         row.addLayout(mid, 1)
         row.addLayout(nums)
-        row.addLayout(self.targets_box)
-        row.addWidget(self.timecode_label)
+        row.addLayout(right)
         self.setFixedHeight(58)
         self._flash = QTimer(self)
         self._flash.setInterval(FLASH_MS)
@@ -160,7 +172,7 @@ class StatusHeader(QFrame):
         colour = STATE_COLOURS.get(st.state, "#4a505b")
         _retext(self.state_label, st.state)
         _restyle(self.state_label,
-                 f"background: {colour}; color: white; font-size: 20pt; font-weight: 800; "
+                 f"background: {colour}; color: white; font-size: 19pt; font-weight: 800; "
                  "border-radius: 5px; padding: 0 10px;")
         self.state_label.setAccessibleName(f"tracking state {st.state}")
         _retext(self.title_label, st.title)
@@ -172,7 +184,7 @@ class StatusHeader(QFrame):
                  else f"color: {MESSAGE_COLOUR};")
         fps_colour = "#ffb020" if st.behind else "#e6e9ee"
         _retext(self.fps_label, st.fps_text + ("  falling behind" if st.behind else ""))
-        _restyle(self.fps_label, f"font-family: monospace; color: {fps_colour};"
+        _restyle(self.fps_label, f"font-family: monospace; font-size: 9pt; color: {fps_colour};"
                  + (" font-weight: bold;" if st.behind else ""))
         _retext(self.latency_label, st.latency_text)
         _retext(self.timecode_label, f"TC {st.timecode}" if st.timecode else "TC –")
@@ -187,10 +199,12 @@ class StatusHeader(QFrame):
         self._apply_frame()
 
     def target_texts(self) -> list[str]:
-        return [lab.text() for lab in self.target_labels]
+        """``"name\nstate"`` of each chip shown (the chip reads them on one line)."""
+        return list(self._target_texts)
 
     # ------------------------------------------------------------ internals
     def _set_targets(self, targets: tuple[HeaderTarget, ...]) -> None:
+        self._target_texts = [f"{t.name}\n{t.text}" for t in targets]
         while len(self.target_labels) < len(targets):
             lab = QLabel()
             lab.setObjectName("header_target")
@@ -202,11 +216,11 @@ class StatusHeader(QFrame):
                 continue
             t = targets[i]
             lab.setVisible(True)
-            _retext(lab, f"{t.name}\n{t.text}")
+            _retext(lab, f"{t.name} {t.text}")
             lab.setToolTip(t.tooltip or t.text)
             lab.setProperty("level", t.level)
             _restyle(lab, f"background: {LEVEL_COLOURS.get(t.level, '#3a3f48')}; color: white; "
-                     "border-radius: 4px; padding: 2px 6px; font-size: 9pt;")
+                     "border-radius: 3px; padding: 1px 6px; font-size: 9pt; font-weight: bold;")
 
     def _toggle_flash(self) -> None:
         self._flash_on = not self._flash_on
