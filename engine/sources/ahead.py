@@ -44,12 +44,9 @@ _END = object()
 
 
 def read_ahead(make: Callable[[int], Frame], count: int, *, depth: int = 1,
-               name: str = "source-ahead", nice: int = 0) -> Iterator[Frame]:
+               name: str = "source-ahead") -> Iterator[Frame]:
     """``make(0) ... make(count - 1)``, each made on a worker thread up to ``depth`` frames
-    before the consumer asks for it (``depth`` 0: on the caller's thread). ``nice`` > 0
-    lowers the worker's CPU priority (Linux: per thread) so that, on a busy machine, the
-    consumer (the tracker) and the output sender go first, as a camera's own work never
-    competes with them; the worker still has its share."""
+    before the consumer asks for it (``depth`` 0: on the caller's thread)."""
     if depth <= 0:
         for i in range(count):
             yield make(i)
@@ -67,8 +64,6 @@ def read_ahead(make: Callable[[int], Frame], count: int, *, depth: int = 1,
         return False
 
     def work() -> None:
-        if nice > 0:
-            _lower_priority(nice)
         try:
             for i in range(count):
                 if stop.is_set() or not put(make(i)):
@@ -96,15 +91,3 @@ def read_ahead(make: Callable[[int], Frame], count: int, *, depth: int = 1,
             with contextlib.suppress(queue.Empty):  # a blocked worker sees ``stop`` soon
                 items.get_nowait()
             worker.join(_POLL_S)
-
-
-def _lower_priority(nice: int) -> None:
-    """Raise this thread's nice value by ``nice`` (Linux: a thread id is a process id for
-    setpriority); elsewhere, or when refused, the thread keeps its priority."""
-    import os
-
-    try:
-        tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, os.getpriority(os.PRIO_PROCESS, tid) + nice)
-    except (AttributeError, OSError):
-        pass

@@ -80,8 +80,6 @@ LIGHTING_NAMES = ("default", "warm", "cool", "dim", "bright", "ramp", "side")
 
 #: frames the studio renders ahead of the consumer (the ``ahead`` option)
 DEFAULT_AHEAD = 1
-#: the render-ahead thread's lower CPU priority (nice): the tracker and the sender go first
-RENDER_NICE = 5
 
 #: the largest integer option accepted (frame counts, seeds): beyond it len() overflows
 _INT_MAX = 10**9
@@ -400,7 +398,7 @@ class SyntheticSource(Source):
         from engine.sources.ahead import read_ahead
 
         return read_ahead(self.studio.frame, len(self), depth=self.ahead,
-                          name="studio-render-ahead", nice=RENDER_NICE)
+                          name="studio-render-ahead")
 
 
 SOURCES = (

@@ -93,21 +93,3 @@ def test_studio_frames_ahead_are_the_same_frames() -> None:
             np.testing.assert_array_equal(fa.depth_m, fb.depth_m)
     with pytest.raises(SourceError, match="ahead"):
         open_source("synthetic:ahead=9")
-
-
-def test_a_niced_worker_runs_at_lower_priority() -> None:
-    import os
-
-    seen: list[int] = []
-
-    def make(i: int) -> Frame:
-        if hasattr(os, "getpriority"):
-            seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
-        return _frame(i)
-
-    base = os.getpriority(os.PRIO_PROCESS, 0) if hasattr(os, "getpriority") else 0
-    assert [f.index for f in read_ahead(make, 2, nice=3, name="test-ahead")] == [0, 1]
-    if seen:
-        assert all(p >= min(base + 3, 19) for p in seen)
-    if hasattr(os, "getpriority"):  # the consumer's own priority is unchanged
-        assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == base
