@@ -361,15 +361,17 @@ def histogram(
 
 @njit(cache=True, nogil=True)
 def sample_geometric(
-    u0: np.ndarray, v0: np.ndarray, wz: np.ndarray, P: np.ndarray, N: np.ndarray,
-    depth: np.ndarray, rays: np.ndarray, M: np.ndarray, rg: np.ndarray, wg: np.ndarray,
-    lo: int, hi: int,
+    u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, P: np.ndarray, N: np.ndarray,
+    depth: np.ndarray, rays: np.ndarray, M: np.ndarray, inv_tau2: float, rg: np.ndarray,
+    wg: np.ndarray, lo: int, hi: int,
 ) -> int:
-    """Point-to-plane residual ``r = n . (M Q - P)`` in the reference frame, Q the current
-    depth point at the nearest full-resolution pixel of the warped point (projective
-    association, as ICP), ``M = T^-1 T_color_depth``. ``wg`` is 1 where a residual exists
-    (point inside, normal known, depth measured, kept by eq. (12)), else 0. Returns the number
-    of residuals."""
+    """Point-to-plane residual ``r = n . (M Q - P)`` in the reference frame for the geometric
+    points ``P`` (projected into ``(u0, v0)``, depth ``Z``): Q is the current depth point at
+    the nearest full-resolution pixel (projective association, as ICP), ``M = T^-1
+    T_color_depth``. ``wg`` is the depth weight of eq. (12) of the association (a presenter
+    in front of the static scene gets 0, like in the photometric term), 0 where there is no
+    residual (outside, behind the camera, no normal, no depth). Returns the number of
+    residuals."""
     hd, wd = depth.shape
     R00, R01, R02, t0 = M[0, 0], M[0, 1], M[0, 2], M[0, 3]
     R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
@@ -378,7 +380,7 @@ def sample_geometric(
     for i in range(lo, hi):
         rg[i] = 0.0
         wg[i] = 0.0
-        if not wz[i] > 0.0:
+        if not Z[i] > 1e-3:
             continue
         nx = N[0, i]
         ny = N[1, i]
@@ -392,14 +394,17 @@ def sample_geometric(
         z = depth[vi, ui]
         if not z > 0.0:
             continue
+        ez = z - Z[i]
+        t = 1.0 - ez * ez * inv_tau2
+        if not t > 0.0:
+            continue
         X = rays[vi, ui, 0] * z
         Y = rays[vi, ui, 1] * z
         qx = R00 * X + R01 * Y + R02 * z + t0
         qy = R10 * X + R11 * Y + R12 * z + t1
         qz = R20 * X + R21 * Y + R22 * z + t2
-        r = nx * (qx - P[0, i]) + ny * (qy - P[1, i]) + nz * (qz - P[2, i])
-        rg[i] = r
-        wg[i] = 1.0
+        rg[i] = nx * (qx - P[0, i]) + ny * (qy - P[1, i]) + nz * (qz - P[2, i])
+        wg[i] = t * t
         cnt += 1
     return cnt
 
@@ -717,6 +722,7 @@ def minimize(
     scale_over_kept: bool,
     brightness_offset: bool,
     brightness_gain: bool,
+    Pg: np.ndarray,
     N: np.ndarray,
     Jg: np.ndarray,
     rays: np.ndarray,
@@ -746,9 +752,11 @@ def minimize(
     Options beyond the paper: ``brightness_offset`` (remove the median residual once per
     level), ``brightness_gain`` (affine model), ``stop_px`` > 0 (stop a level when an update
     moves the image by less than this many pixels of that level; the counts become caps),
-    ``geo_weight`` > 0 adds the point-to-plane residual of :func:`sample_geometric` (normals
-    ``N`` (3, n), Jacobian ``Jg`` (6, n), full-resolution rays, ``T_cd`` moving the current
-    depth to the colour instant), each residual in units of its own robust (Tukey) scale.
+    ``geo_weight`` > 0 adds the point-to-plane residual of :func:`sample_geometric` over the
+    geometric points ``Pg`` (3, ng) (normals ``N`` (3, ng), Jacobian ``Jg`` (6, ng),
+    full-resolution rays, ``T_cd`` moving the current depth to the colour instant), each
+    term in units of its own robust (Tukey) scale, the geometric one times ``geo_weight``,
+    at the finest level (0) only.
     ``nthreads`` > 1 splits the photometric passes over that many threads (numba prange).
 
     Quality report: ``w_out`` and the inlier fraction (share of points with weight > 0.1) use
@@ -775,10 +783,15 @@ def minimize(
     nv = np.zeros(nc, dtype=np.int64)
     H = np.zeros((6, 6))
     g = np.zeros(6)
-    use_geo = geo_weight > 0.0 and N.shape[1] == n
-    ng = n if use_geo else 1
-    rg = np.zeros(ng)
-    wg = np.zeros(ng)
+    ng = Pg.shape[1]
+    use_geo = geo_weight > 0.0 and ng > 0 and N.shape[1] == ng and Jg.shape[1] == ng
+    ngb = ng if use_geo else 1
+    rg = np.zeros(ngb)
+    wg = np.zeros(ngb)
+    ug = np.zeros(ngb)
+    vg = np.zeros(ngb)
+    Zg = np.zeros(ngb)
+    bins_g = np.zeros(ngb, dtype=np.int32)
     inv_tau2 = 1.0 / (tau_m * tau_m)
     beta = 0.0
     alpha = 1.0
@@ -838,22 +851,30 @@ def minimize(
                 Jl, e, csl, wz, alpha, 1.0 - alpha, beta, 1.0 / (scale * TUKEY_B), acc, accs, m
             )
             _unpack(acc, H, g)
-            if use_geo:
+            if use_geo and lev == 0:
                 # combined photometric + point-to-plane (ICP-like) cost, each residual in
-                # units of its own robust scale (an extension; the paper is photometric)
+                # units of its own robust scale (an extension; the paper is photometric), at
+                # the finest level only: the coarse photometric levels bring it into the
+                # narrow basin of projective association (from 5 cm off on the studio rail it
+                # held the pose where the walls and floor fit, 6 cm off, with a tiny scale)
+                # (the geometric points: their own set, or the photometric ones)
+                mg = min(ng, max(12, (ng * m) // n))
                 M = _inverse(T) @ T_cd
-                ngk = sample_geometric(u0, v0, wz, P, N, depth, rays, M, rg, wg, m - m, m)
+                project(Pg, T, cam, dist, ug, vg, Zg, m - m, mg)
+                ngk = sample_geometric(
+                    ug, vg, Zg, Pg, N, depth, rays, M, inv_tau2, rg, wg, m - m, mg
+                )
                 hist[:] = 0
-                histogram(rg, wg, GEO_UNIT, bins, hist, m - m, m)
+                histogram(rg, wg, GEO_UNIT, bins_g, hist, m - m, mg)
                 if ngk >= 12:
                     _cumulate(hist, cum)
                     medg = hist_median_abs(cum, hist, 0.0) / GEO_UNIT
                     scale_g = TUKEY_C * max(medg, min_geo_scale, 1e-9)
-                    # (csl with coefficient 0 in place of a zero array: the same argument
+                    # (a float32 row with coefficient 0 in place of c*: the same argument
                     # types as the photometric call, one specialisation)
                     _accumulate_pass(
-                        Jg, rg, csl, wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc,
-                        accs, m,
+                        Jg, rg, Jg[0], wg, 1.0, 0.0, 0.0, 1.0 / (scale_g * TUKEY_B), acc,
+                        accs, mg,
                     )
                     s_c = 1.0 / (scale * scale)
                     for a in range(6):

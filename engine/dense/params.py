@@ -68,8 +68,11 @@ class DenseParams(Params):
                                          "at 80x60); 1: all points at every level (the paper)")
     geometric_weight: float = param(0.0, lo=0.0, hi=10.0, step=0.1,
                                     help="weight of a point-to-plane depth residual (ICP-like) "
-                                    "added to the photometric cost, each in units of its robust "
-                                    "scale; 0: photometric only (the paper)")
+                                    "added to the photometric cost at the finest level, each in "
+                                    "units of its robust scale; 0: photometric only (the paper)")
+    geometric_points: int = param(0, lo=0, hi=76800, step=1024,
+                                  help="points of the geometric term, spread over all valid "
+                                  "depth (walls and floors too); 0: the photometric points")
     compensate_depth_delay: bool = param(True,
                                          help="move reference points by the camera motion "
                                          "between the depth and colour timestamps "

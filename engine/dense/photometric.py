@@ -148,7 +148,8 @@ class Reference:
     n_requested: int
     z_median_m: float = 1.0  # median depth of the points (convergence test scale)
     normals: F32 | None = None  # (3, n) unit normals (0: none), for the geometric term
-    Jg: F32 | None = None  # (6, n) Jacobian of the point-to-plane residual (inverse comp.)
+    Jg: F32 | None = None  # (6, ng) Jacobian of the point-to-plane residual (inverse comp.)
+    Pg: F32 | None = None  # (3, ng) points of the geometric term (with ``normals``)
 
     @property
     def n(self) -> int:
@@ -157,7 +158,7 @@ class Reference:
     @property
     def nbytes(self) -> int:
         """Memory held by the arrays (bytes)."""
-        arrs = (self.P, self.cstar, self.J, self.uv_full, self.normals, self.Jg)
+        arrs = (self.P, self.cstar, self.J, self.uv_full, self.normals, self.Jg, self.Pg)
         return int(sum(a.nbytes for a in arrs if a is not None))
 
 
@@ -171,10 +172,15 @@ def build_reference(
     max_edge_depth_ratio: float = 0.05,
     T_color_depth: F64 | None = None,
     with_normals: bool = False,
+    geometric_points: int = 0,
 ) -> Reference:
     """Select the ``n_points`` strongest-gradient points with valid depth (sec. 4.5, eq. (14))
-    and precompute c* and the Jacobian of eq. (6) at every level (``with_normals``: also the
-    surface normals and point-to-plane Jacobian of the optional geometric term)."""
+    and precompute c* and the Jacobian of eq. (6) at every level.
+
+    ``with_normals``: also the points of the optional geometric term with their surface
+    normals and point-to-plane Jacobian: ``geometric_points`` > 0 of their own, spread evenly
+    over every pixel with valid, non-edge depth and a normal (flat walls and floors constrain
+    the geometry as much as textured edges do), else the photometric points themselves."""
     from engine.dense import kernels
 
     intr = pre.intrinsics
@@ -207,21 +213,35 @@ def build_reference(
     idx = idx[spread_order(idx.size)]
     zi = z[idx]
     P = np.stack([xy[idx, 0] * zi, xy[idx, 1] * zi, zi], axis=1)
-    N = _normals(pre.depth_m, intr, uf[idx], vf[idx], P) if with_normals else None
+    Pg = N = None
+    if with_normals and geometric_points > 0:
+        cg = np.flatnonzero(cand.ravel())
+        if cg.size > geometric_points:  # evenly over the image (a few lose their normal)
+            cg = cg[np.linspace(0, cg.size - 1, geometric_points).astype(np.int64)]
+        cg = cg[spread_order(cg.size)]  # prefixes stay spread
+        zg = z[cg]
+        Pc = np.stack([xy[cg, 0] * zg, xy[cg, 1] * zg, zg], axis=1)
+        Nc = _normals(pre.depth_m, intr, uf[cg], vf[cg], Pc)
+        has_n = np.any(Nc != 0.0, axis=1)
+        Pg, N = Pc[has_n], Nc[has_n]
+    elif with_normals:
+        Pg, N = P, _normals(pre.depth_m, intr, uf[idx], vf[idx], P)
     if T_color_depth is not None:
-        # depth captured at another instant than the colour image: move the points into the
-        # colour camera's pose (time-offset compensation, not in the paper)
+        # depth captured at another instant than the colour image: move the photometric points
+        # into the colour camera's pose (time-offset compensation, not in the paper). The
+        # geometric points stay at the depth instant: depth against depth, their relative
+        # pose is the colour images' one at constant velocity, and no velocity estimate of the
+        # tracker's own feeds back into them
         P = P @ T_color_depth[:3, :3].T + T_color_depth[:3, 3]
-        if N is not None:
-            N = N @ T_color_depth[:3, :3].T
     P32 = np.ascontiguousarray(P.T, dtype=np.float32)
-    N32 = Jg = None
-    if N is not None:
+    N32 = Jg = Pg32 = None
+    if Pg is not None and N is not None:
         N32 = np.ascontiguousarray(N.T, dtype=np.float32)
+        Pg32 = np.ascontiguousarray(Pg.T, dtype=np.float32)
         # point-to-plane residual r = n . (T^-1 Q - P) (Q: current depth point); the inverse
         # compositional increment gives the constant Jacobian [-n, -(P x n)] at x = 0
         Jg = np.ascontiguousarray(
-            np.concatenate([-N, -np.cross(P, N)], axis=1).T, dtype=np.float32
+            np.concatenate([-N, -np.cross(Pg, N)], axis=1).T, dtype=np.float32
         )
     n = P.shape[0]
     cstar = np.zeros((3, n), dtype=np.float32)
@@ -234,7 +254,7 @@ def build_reference(
     )
     uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float32)
     zmed = float(np.median(P[:, 2])) if n else 1.0
-    return Reference(P32, cstar, J, uv, intr, n_points, zmed, normals=N32, Jg=Jg)
+    return Reference(P32, cstar, J, uv, intr, n_points, zmed, normals=N32, Jg=Jg, Pg=Pg32)
 
 
 def orthonormalize(T: F64) -> F64:
@@ -329,8 +349,8 @@ def align(
     uv = np.empty((n, 2), dtype=np.float32)
     e = np.empty(n, dtype=np.float32)
     steps = np.zeros(_MAX_STEPS)
-    normals, Jg = ref.normals, ref.Jg
-    use_geo = geo_weight > 0 and normals is not None and Jg is not None
+    Pg, normals, Jg = ref.Pg, ref.normals, ref.Jg
+    use_geo = geo_weight > 0 and Pg is not None and normals is not None and Jg is not None
     level_n = np.array([max(1, round(f * n)) for f in level_fraction], dtype=np.int64)
     f32, f64, i64 = np.float32, np.float64, np.int64
     T, st = kernels.minimize(
@@ -342,6 +362,7 @@ def align(
         float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
         bool(scale_over_kept), bool(brightness_offset),
         bool(brightness_gain and brightness_offset),
+        _ro(Pg, f32) if use_geo and Pg is not None else _NO_N,
         _ro(normals, f32) if use_geo and normals is not None else _NO_N,
         _ro(Jg, f32) if use_geo and Jg is not None else _NO_JG,
         _ro(full_rays(intr), f64) if use_geo else _NO_RAYS,

@@ -28,6 +28,16 @@ nearest keyframes to the last good pose (``relocalize_candidates``, eq. (21) ord
 success is reported as RELOCALIZING for ``relock_confirm_frames`` frames. ``details``
 (:class:`engine.dense.details.DenseDetails`) carries ``frames_to_relock`` on the frame that
 relocked.
+
+Depth timing (beyond the paper). A depth image showing another instant than the colour image
+(``Frame.depth_timestamp_s``: TUM pairs by the instant the depth shows, see
+:mod:`engine.sources.tum`) is registered to the wrong view while the camera moves; the
+reference's photometric points are moved by the tracker's velocity over ``t_depth -
+t_colour`` (``compensate_depth_delay``). The geometric term (``geometric_weight``) compares
+depth with depth at the depth instants and is not moved: its relative poses are the colour
+images' at constant velocity, and moving the current depth by the tracker's own velocity
+estimate diverged on TUM paired by stamps (there the depth showed the scene 35-40 ms, more
+than a frame, before the colour).
 """
 
 from __future__ import annotations
@@ -130,7 +140,7 @@ class _DenseBase:
         old, self._params, self._pending = self._params, self._pending, None
         def key(p: DenseParams) -> tuple[object, ...]:
             return (p.n_points, p.min_depth_m, p.max_depth_m, p.edge_depth_ratio,
-                    p.geometric_weight > 0)
+                    p.geometric_weight > 0, p.geometric_points)
 
         return key(old) != key(self._params)
 
@@ -153,7 +163,7 @@ class _DenseBase:
             pre, p.n_points, min_depth_m=p.min_depth_m, max_depth_m=p.max_depth_m,
             max_edge_depth_ratio=p.edge_depth_ratio,
             T_color_depth=self._depth_delay_transform(frame),
-            with_normals=p.geometric_weight > 0,
+            with_normals=p.geometric_weight > 0, geometric_points=p.geometric_points,
         )
 
     def _note_good_pose(
@@ -192,13 +202,15 @@ class _DenseBase:
         self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64, frame: Frame | None = None
     ) -> _Attempt:
         p = self._params
-        T_cd = self._depth_delay_transform(frame) if p.geometric_weight > 0 else None
+        # the geometric term compares depth with depth, both at the depth instant: no
+        # T_color_depth (moving the current depth by the tracker's own velocity estimate
+        # extrapolates more than a frame on TUM, depth ~35 ms behind colour, and diverged)
         res = ph.align(
             ref, pre, T0, p.iterations_fine_to_coarse, tau_m=p.tau_m,
             use_depth=p.use_depth_weights, min_residual_scale=p.min_residual_scale,
             scale_over_kept=p.scale_over_kept, threads=p.threads,
             brightness_offset=p.brightness_offset, geo_weight=p.geometric_weight,
-            T_color_depth=T_cd, brightness_gain=p.brightness_gain,
+            brightness_gain=p.brightness_gain,
             stop_px=p.stop_px, level_fraction=p.level_fraction_fine_to_coarse,
             quality_scale=self._quality_scale(),
         )

@@ -9,6 +9,17 @@ pairs as possible (see :func:`associate_one_to_one`). Colour images without a
 partner are dropped (counted in :attr:`TumSource.dropped_rgb`). A folder without
 ``depth.txt`` is read as colour only (``Frame.depth_m`` None).
 
+Depth latency. The Kinect of the TUM benchmark recordings stamps its depth images later than
+the scene they show: on freiburg1_xyz, trajectories from depth alone (OpenCV's ICP odometry)
+match the ground truth best with their poses stamped 35-40 ms before the colour stamps,
+trajectories from colour (photometric) at 0 ms, while the depth stamps are only ~15 ms before
+the colour ones: the depth shows the scene ~20 ms before its stamp. A recording of the
+benchmark (``depth.txt`` names its ``rgbd_dataset_freiburg...`` bag in the header) therefore
+has ``depth_latency_s`` = :data:`TUM_KINECT_DEPTH_LATENCY_S` (other folders, e.g. ours: 0):
+colour and depth are paired by the instant the depth shows (stamp - latency; then the depth
+image after the nearest-stamped one: 2 ms instead of 35 ms apart), and
+``Frame.depth_timestamp_s`` is that instant.
+
 Everything that can be checked without decoding images is checked at construction.
 """
 
@@ -33,6 +44,9 @@ F64 = NDArray[np.float64]
 
 #: association window of the TUM tools (associate.py --max_difference 0.02)
 MAX_ASSOCIATION_DT_S = 0.02
+#: how long before its stamp a TUM benchmark (Kinect) depth image shows the scene (see the
+#: module doc; measured on freiburg1_xyz, not by the trackers' ATE)
+TUM_KINECT_DEPTH_LATENCY_S = 0.02
 #: ground truth is interpolated only between samples at most this far from the query time
 MAX_GT_GAP_S = 0.05
 
@@ -227,7 +241,13 @@ class TumSource(Source):
     fails. Depth PNGs are divided by ``intrinsics.depth_scale`` (5000 for TUM).
     """
 
-    def __init__(self, path: str | Path, *, max_dt_s: float = MAX_ASSOCIATION_DT_S) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        max_dt_s: float = MAX_ASSOCIATION_DT_S,
+        depth_latency_s: float | None = None,
+    ) -> None:
         folder = Path(path).expanduser()
         if not folder.exists():
             raise SourceError(f"{folder}: no such folder")
@@ -248,14 +268,20 @@ class TumSource(Source):
         self._check_files_exist(rgb_txt, rgb)
         depth_txt = folder / "depth.txt"
         self.has_depth = depth_txt.is_file()
+        #: how long before its stamp a depth image shows the scene (see the module doc)
+        self.depth_latency_s = 0.0
         pairs: list[_Pair] = []
         if self.has_depth:
             depth = read_tum_list(depth_txt)
             self._check_files_exist(depth_txt, depth)
+            if depth_latency_s is None:
+                depth_latency_s = (
+                    TUM_KINECT_DEPTH_LATENCY_S if _is_benchmark_recording(depth_txt) else 0.0
+                )
+            self.depth_latency_s = float(depth_latency_s)
+            shown = [e.timestamp_s - self.depth_latency_s for e in depth]
             matches = associate_one_to_one(
-                np.array([e.timestamp_s for e in rgb]),
-                np.array([e.timestamp_s for e in depth]),
-                max_dt_s,
+                np.array([e.timestamp_s for e in rgb]), np.array(shown), max_dt_s
             )
             for i, j in matches:
                 pairs.append(
@@ -263,7 +289,7 @@ class TumSource(Source):
                         rgb[i].timestamp_s,
                         folder / rgb[i].rel_path,
                         folder / depth[j].rel_path,
-                        depth[j].timestamp_s,
+                        shown[j],
                     )
                 )
             if not pairs:
@@ -369,6 +395,18 @@ class TumSource(Source):
                 payloads=(files,),
                 depth_timestamp_s=depth_t,
             )
+
+
+def _is_benchmark_recording(list_path: Path) -> bool:
+    """``depth.txt`` of the TUM benchmark: its header names the recording's bag."""
+    try:
+        with list_path.open(encoding="utf-8") as fh:
+            head = [fh.readline() for _ in range(3)]
+    except (OSError, UnicodeDecodeError):
+        return False
+    return any(
+        line.startswith("#") and "rgbd_dataset_freiburg" in line for line in head
+    )
 
 
 def _is_tum_folder(path: Path) -> bool:

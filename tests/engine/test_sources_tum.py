@@ -17,6 +17,7 @@ from engine.frames import SourceFiles
 from engine.geometry import R_from_quat_xyzw, make_T, quat_xyzw_from_R, so3_exp
 from engine.sources import open_source
 from engine.sources.tum import (
+    TUM_KINECT_DEPTH_LATENCY_S,
     GroundTruth,
     TumSource,
     associate_one_to_one,
@@ -86,6 +87,30 @@ def good_folder(tmp_path: Path, name: str = "seq") -> Path:
     return make_tum(tmp_path / name, times, [t + 0.004 for t in times])
 
 
+def test_depth_latency_pairs_by_the_instant_the_depth_shows(tmp_path: Path) -> None:
+    """Our own folders have no depth latency (stamps as written); a benchmark recording's
+    depth.txt names its bag and gets TUM_KINECT_DEPTH_LATENCY_S: pairs by stamp - latency,
+    depth_timestamp_s is that instant; an explicit depth_latency_s wins."""
+    times = [100.0 + 0.033 * i for i in range(4)]
+    depth_times = [t + 0.021 for t in times]  # each shows the scene ~1 ms after its colour
+    ours = TumSource(make_tum(tmp_path / "ours", times, depth_times))
+    assert ours.depth_latency_s == 0.0
+    # by stamps colour k + 1 pairs with depth k (12 ms apart): 3 frames
+    np.testing.assert_array_equal(ours.timestamps_s, times[1:])
+    assert [f.depth_timestamp_s for f in ours.frames()] == depth_times[:3]
+    bench = make_tum(tmp_path / "bench", times, depth_times)
+    lines = (bench / "depth.txt").read_text().splitlines()
+    lines.insert(1, "# file: 'rgbd_dataset_freiburg1_xyz.bag'")
+    (bench / "depth.txt").write_text("\n".join(lines) + "\n")
+    src = TumSource(bench)
+    assert src.depth_latency_s == TUM_KINECT_DEPTH_LATENCY_S
+    frames = list(src.frames())
+    assert len(frames) == 4
+    for f, t_depth in zip(frames, depth_times, strict=True):
+        assert f.depth_timestamp_s == pytest.approx(t_depth - TUM_KINECT_DEPTH_LATENCY_S)
+    assert TumSource(bench, depth_latency_s=0.0).depth_latency_s == 0.0
+
+
 # --- real data -------------------------------------------------------------------------------
 
 
@@ -105,16 +130,28 @@ def test_real_fr1_xyz_association_depth_gt_and_intrinsics() -> None:
 
     rgb, depth = read("rgb.txt"), read("depth.txt")
     assert len(rgb) == 37
-    greedy = associate_reference(rgb, depth, 0.02)
-    # The 37 frames pair one by one (rgb k with depth k); one gap is 20.2 ms, outside the
-    # 20 ms window. TUM's greedy associate.py strands 5 frames here; ours keeps all 36.
     t_rgb_all, t_depth_all = sorted(rgb), sorted(depth)
-    expected = [
+    # by stamps the 37 frames pair one by one (rgb k with depth k, one gap 20.2 ms outside
+    # the 20 ms window): TUM's greedy associate.py strands 5 frames there, ours keeps 36
+    stamps = TumSource(folder, depth_latency_s=0.0)
+    assert stamps.depth_latency_s == 0.0
+    by_stamp = [
         (t_rgb_all[k], t_depth_all[k])
         for k in range(37)
         if abs(t_rgb_all[k] - t_depth_all[k]) < 0.02
     ]
-    assert len(expected) == 36 > len(greedy)
+    assert len(by_stamp) == 36 > len(associate_reference(rgb, depth, 0.02))
+    np.testing.assert_array_equal(stamps.timestamps_s, [a for a, _ in by_stamp])
+    # a benchmark recording (the header names its bag): the depth shows the scene 20 ms
+    # before its stamp, so colour k pairs with the depth image after, k + 1 (within 5 ms of
+    # what it shows instead of 12-17 ms of its stamp); the last colour image has none
+    assert src.depth_latency_s == TUM_KINECT_DEPTH_LATENCY_S == 0.02
+    expected = [
+        (t_rgb_all[k], t_depth_all[k + 1])
+        for k in range(36)
+        if abs(t_rgb_all[k] - (t_depth_all[k + 1] - 0.02)) < 0.02
+    ]
+    assert len(expected) == 36
     assert len(src) == len(expected)
     assert src.dropped_rgb == 37 - len(expected)
     np.testing.assert_array_equal(src.timestamps_s, [a for a, _ in expected])
@@ -124,7 +161,8 @@ def test_real_fr1_xyz_association_depth_gt_and_intrinsics() -> None:
     assert len(frames) == len(expected)
     for frame, (t_rgb, t_depth) in zip(frames, expected, strict=True):
         assert frame.timestamp_s == t_rgb
-        assert frame.depth_timestamp_s == t_depth
+        assert frame.depth_timestamp_s == pytest.approx(t_depth - 0.02, abs=1e-9)
+        assert abs(frame.depth_timestamp_s - t_rgb) < 0.006
         assert frame.payload(SourceFiles).depth_path.endswith(depth[t_depth])
         assert frame.color_bgr is not None
         assert frame.color_bgr.shape == (480, 640, 3)
