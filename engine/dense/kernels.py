@@ -23,6 +23,11 @@ of a good fit lies; coarse for outliers), 2 x 1024 bins over |e| < 256 grey leve
 inside a bin. From the one histogram come both the brightness offset (the median of e) and
 the Tukey scale (the median of |e - offset|).
 
+Point loops run over unsigned indices (``range(np.uint64(lo), np.uint64(hi))``): with a
+signed index numba wraps negative indices around (``a[i]`` is ``a[i + len(a)]`` for i < 0),
+and LLVM, unable to rule that out for a start it does not know, turns every contiguous load
+of a vectorised loop into a gather (the projection pass was ~8x, the accumulation ~3x slower).
+
 One specialisation per kernel: every array argument reaches :func:`minimize` and
 :func:`precompute_reference` with one fixed type (dtype, layout, read-only inputs; see
 ``engine.dense.photometric``), and a callee is never called once with a literal and once with
@@ -262,7 +267,7 @@ def project(
     Px = P[0]
     Py = P[1]
     Pz = P[2]
-    for i in range(lo, hi):
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
         px = np.float64(Px[i])
         py = np.float64(Py[i])
         pz = np.float64(Pz[i])
@@ -293,47 +298,57 @@ def sample(
     depth is read at the nearest full-resolution pixel (no resampling across edges). Points
     outside the level image (or behind the camera) get ``e = wz = inside = 0``. Returns the
     number inside the image.
+
+    Branch-free (a point outside reads pixel 0 and is multiplied by 0; unsigned flat indices
+    need no negative-index wrap-around): the image look-ups cannot be vectorised, but the
+    loop has no unpredictable branch (about a third faster than branching per point).
     """
     h, w = img.shape
     hd, wd = depth.shape
     wmax = w - 1.0
     hmax = h - 1.0
+    flat = img.ravel()  # C-contiguous inputs (photometric._ro): views, no copies
+    dflat = depth.ravel()
+    uw = np.uint32(w)
+    uw1 = np.uint32(w + 1)
+    one = np.uint32(1)
+    uwd = np.uint32(wd)
+    uhd = np.uint32(hd)
     nvalid = 0
-    for i in range(lo, hi):
-        e[i] = 0.0
-        wz[i] = 0.0
-        inside[i] = 0.0
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
         Zi = Z[i]
         uL = (u0[i] + 0.5) * scale - 0.5
         vL = (v0[i] + 0.5) * scale - 0.5
-        if not (Zi > 1e-3 and uL >= 0.0 and vL >= 0.0 and uL < wmax and vL < hmax):
-            continue
-        nvalid += 1
-        inside[i] = 1.0
-        x0 = int(uL)
-        y0 = int(vL)
-        ax = uL - x0
-        ay = vL - y0
-        i00 = img[y0, x0]
-        i01 = img[y0, x0 + 1]
-        i10 = img[y0 + 1, x0]
-        i11 = img[y0 + 1, x0 + 1]
+        ok = Zi > 1e-3 and uL >= 0.0 and vL >= 0.0 and uL < wmax and vL < hmax
+        uc = uL if ok else 0.0
+        vc = vL if ok else 0.0
+        x0 = np.uint32(uc)
+        y0 = np.uint32(vc)
+        ax = uc - x0
+        ay = vc - y0
+        k = y0 * uw + x0
+        i00 = flat[k]
+        i01 = flat[k + one]
+        i10 = flat[k + uw]
+        i11 = flat[k + uw1]
         top = i00 + ax * (i01 - i00)
         bot = i10 + ax * (i11 - i10)
         ei = cstar[i] - (top + ay * (bot - top))  # eq. (1), inverse compositional
         wzi = 1.0
-        if use_depth:
-            ui = int(u0[i] + 0.5)
-            vi = int(v0[i] + 0.5)
-            zc = depth[vi, ui] if (ui < wd and vi < hd) else 0.0
-            if zc > 0.0:
-                ez = zc - Zi  # eq. (11)
-                t = max(1.0 - ez * ez * inv_tau2, 0.0)
-                wzi = t * t  # eq. (12)
-            else:
-                wzi = missing_depth_weight
-        e[i] = ei
-        wz[i] = wzi
+        if use_depth:  # (the same for every point: no branch misprediction)
+            ui = np.uint32(u0[i] + 0.5) if ok else np.uint32(0)
+            vi = np.uint32(v0[i] + 0.5) if ok else np.uint32(0)
+            inb = ui < uwd and vi < uhd  # (always, when ok: a guard, not a test)
+            zd = dflat[vi * uwd + ui if inb else np.uint32(0)]
+            zc = zd if inb else 0.0
+            ez = zc - Zi  # eq. (11)
+            t = max(1.0 - ez * ez * inv_tau2, 0.0)
+            wzi = t * t if zc > 0.0 else missing_depth_weight  # eq. (12)
+        okf = 1.0 if ok else 0.0
+        e[i] = ei * okf
+        wz[i] = wzi * okf
+        inside[i] = okf
+        nvalid += 1 if ok else 0
     return nvalid
 
 
@@ -344,14 +359,14 @@ def histogram(
 ) -> int:
     """Add ``x * unit`` of points ``lo:hi`` with ``w > 0`` to the residual histogram (bin
     indices in a vectorised loop, then the counts); returns how many were added."""
-    for i in range(lo, hi):
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
         v = x[i] * unit
         f = min(math.sqrt(abs(v)) * HIST_K, HIST_NB - 0.5)
         b = np.int32(f)
         b = HIST_NB + b if v >= 0.0 else HIST_NB - 1 - b
         bins[i] = b if w[i] > 0.0 else 2 * HIST_NB
     cnt = 0
-    for i in range(lo, hi):
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
         b = bins[i]
         if b < 2 * HIST_NB:
             hist[b] += 1
@@ -377,7 +392,7 @@ def sample_geometric(
     R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
     R20, R21, R22, t2 = M[2, 0], M[2, 1], M[2, 2], M[2, 3]
     cnt = 0
-    for i in range(lo, hi):
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
         rg[i] = 0.0
         wg[i] = 0.0
         if not Z[i] > 1e-3:
@@ -432,7 +447,7 @@ def accumulate(
     h44 = h45 = 0.0
     h55 = 0.0
     g0 = g1 = g2 = g3 = g4 = g5 = 0.0
-    for i in range(lo, hi):
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
         r = a * e[i] + b * cs[i] - beta
         u = r * inv  # u / b of eq. (9)-(10)
         t = max(1.0 - u * u, 0.0)
