@@ -1034,3 +1034,63 @@ def precompute_reference(
             J[lev, 3, i] = dPy * Z - dPz * Y
             J[lev, 4, i] = -dPx * Z + dPz * X
             J[lev, 5, i] = dPx * Y - dPy * X
+
+
+# ------------------------------------------------------------------------ image pyramid
+
+
+@njit(cache=True, nogil=True)
+def pyramid_u8(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sec. 4.6 pyramid of an 8-bit grey image (``engine.dense.pyramid``): level 0 is the
+    5x5 Gaussian (1 4 6 4 1 / 16, reflect-101 border) of the full image averaged over 2x2
+    blocks, i.e. the 6-tap filter (1 5 10 10 5 1) / 32 at every second pixel in each
+    direction, computed at level-0 resolution only; levels 1 and 2 are 2x2 block means.
+    The same as OpenCV's full-resolution filter then area resize, to float round-off."""
+    h, w = g.shape
+    h2, w2 = h // 2, w // 2
+    k0, k1, k2 = 1.0 / 32.0, 5.0 / 32.0, 10.0 / 32.0
+    tmp = np.empty((h, w2), dtype=np.float32)
+    for r in range(np.uint64(0), np.uint64(h)):
+        row = g[r]
+        # interior: columns 2x-2 .. 2x+3 inside the image
+        for x in range(np.uint64(1), np.uint64(max(w2 - 1, 1))):
+            c = x + x
+            tmp[r, x] = (k0 * (np.float32(row[c - 2]) + np.float32(row[c + 3]))
+                         + k1 * (np.float32(row[c - 1]) + np.float32(row[c + 2]))
+                         + k2 * (np.float32(row[c]) + np.float32(row[c + 1])))
+        for x in (0, w2 - 1):  # borders: reflect-101 (-1 -> 1, w -> w - 2)
+            acc = 0.0
+            for j in range(6):
+                c = 2 * x - 2 + j
+                c = -c if c < 0 else (2 * (w - 1) - c if c >= w else c)
+                kj = k0 if (j == 0 or j == 5) else (k1 if (j == 1 or j == 4) else k2)
+                acc += kj * np.float32(row[c])
+            tmp[r, x] = acc
+    l0 = np.empty((h2, w2), dtype=np.float32)
+    for y in range(h2):
+        rows = np.empty(6, dtype=np.int64)
+        for j in range(6):
+            rr = 2 * y - 2 + j
+            rows[j] = -rr if rr < 0 else (2 * (h - 1) - rr if rr >= h else rr)
+        a0, a1, a2 = tmp[rows[0]], tmp[rows[1]], tmp[rows[2]]
+        a3, a4, a5 = tmp[rows[3]], tmp[rows[4]], tmp[rows[5]]
+        out = l0[y]
+        for x in range(np.uint64(0), np.uint64(w2)):
+            out[x] = k0 * (a0[x] + a5[x]) + k1 * (a1[x] + a4[x]) + k2 * (a2[x] + a3[x])
+    return l0, _half(l0), _half(_half(l0))
+
+
+@njit(cache=True, nogil=True)
+def _half(a: np.ndarray) -> np.ndarray:
+    """2x2 block means (an odd last row or column is dropped), OpenCV's INTER_AREA at half
+    size."""
+    h, w = a.shape[0] // 2, a.shape[1] // 2
+    out = np.empty((h, w), dtype=np.float32)
+    for y in range(h):
+        r0 = a[2 * y]
+        r1 = a[2 * y + 1]
+        o = out[y]
+        for x in range(np.uint64(0), np.uint64(w)):
+            c = x + x
+            o[x] = np.float32(0.25) * ((r0[c] + r0[c + 1]) + (r1[c] + r1[c + 1]))
+    return out

@@ -191,6 +191,19 @@ def test_pyramid_sizes_and_geometry_not_downsampled() -> None:
     assert pre.depth_m.shape == (480, 640)
 
 
+def test_pyramid_of_8bit_images_is_the_opencv_pyramid() -> None:
+    """The numba pyramid of 8-bit frames (level-0 resolution only) against the OpenCV path
+    (full-resolution Gaussian, then area resizing) that float images take, odd sizes too."""
+    rng = np.random.default_rng(3)
+    for shape in ((480, 640), (61, 87), (8, 9)):
+        g = rng.integers(0, 256, shape).astype(np.uint8)
+        fast = build_pyramid(g)
+        ref = build_pyramid(g.astype(np.float32))
+        for a, b in zip(fast, ref, strict=True):
+            assert a.shape == b.shape and a.dtype == np.float32
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-4)
+
+
 def test_two_frame_alignment_recovers_known_motion() -> None:
     """Algorithm 1 on two rendered frames: < 0.5 mm and < 0.05 deg."""
     intr = small_intrinsics(distorted=True)
