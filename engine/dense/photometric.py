@@ -43,8 +43,10 @@ def preprocess(
             f"image is {gray_full.shape[1]}x{gray_full.shape[0]} but the intrinsics say "
             f"{intr.width}x{intr.height}"
         )
-    depth = np.ascontiguousarray(depth_m, dtype=np.float32)
-    return Preprocessed(pyr.build_pyramid(gray_full), depth, intr)
+    l0, l1, l2 = pyr.build_pyramid(gray_full)
+    f32 = np.float32
+    # read-only views: the kernels take them as they are (no per-call view, see _ro)
+    return Preprocessed((_ro(l0, f32), _ro(l1, f32), _ro(l2, f32)), _ro(depth_m, f32), intr)
 
 
 @functools.lru_cache(maxsize=8)
@@ -108,7 +110,11 @@ def _ro(a: NDArray[Any], dtype: type[np.generic]) -> NDArray[Any]:
 
     Every kernel input goes through this, so each numba kernel sees one type per argument
     whatever the caller's arrays were (read-only frame depth, writable keyframe depth, ...):
-    one specialisation per kernel, see :mod:`engine.dense.kernels`."""
+    one specialisation per kernel, see :mod:`engine.dense.kernels`. An array that already
+    is one (a cached constant, an earlier result of this) is returned as it is."""
+    if (isinstance(a, np.ndarray) and a.dtype == dtype and not a.flags.writeable
+            and a.flags.c_contiguous):
+        return a
     v = np.ascontiguousarray(a, dtype=dtype).view()
     v.setflags(write=False)
     return v
@@ -122,6 +128,14 @@ _NO_TCD = _ro(np.eye(4), np.float64)
 
 def cam_vector(intr: Intrinsics) -> F64:
     return np.array([intr.fx, intr.fy, intr.cx, intr.cy], dtype=np.float64)
+
+
+@functools.lru_cache(maxsize=8)
+def _camera_inputs(intr: Intrinsics) -> tuple[F64, F64, F64]:
+    """The per-camera kernel inputs (fx fy cx cy, distortion, level scales), read-only, made
+    once per calibration rather than once per frame."""
+    return (_ro(cam_vector(intr), np.float64), _ro(intr.dist, np.float64),
+            _ro(pyr.level_scales(), np.float64))
 
 
 def spread_order(n: int) -> NDArray[np.int64]:
@@ -254,7 +268,11 @@ def build_reference(
     )
     uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float32)
     zmed = float(np.median(P[:, 2])) if n else 1.0
-    return Reference(P32, cstar, J, uv, intr, n_points, zmed, normals=N32, Jg=Jg, Pg=Pg32)
+    # read-only from here on (the kernels then take them without a per-frame view, _ro)
+    return Reference(_ro(P32, f32), _ro(cstar, f32), _ro(J, f32), _ro(uv, f32), intr,
+                     n_points, zmed, normals=None if N32 is None else _ro(N32, f32),
+                     Jg=None if Jg is None else _ro(Jg, f32),
+                     Pg=None if Pg32 is None else _ro(Pg32, f32))
 
 
 def orthonormalize(T: F64) -> F64:
@@ -353,10 +371,11 @@ def align(
     use_geo = geo_weight > 0 and Pg is not None and normals is not None and Jg is not None
     level_n = np.array([max(1, round(f * n)) for f in level_fraction], dtype=np.int64)
     f32, f64, i64 = np.float32, np.float64, np.int64
+    cam, dist, scales = _camera_inputs(intr)
     T, st = kernels.minimize(
         _ro(ref.P, f32), _ro(ref.cstar, f32), _ro(ref.J, f32), _ro(pre.levels[0], f32),
         _ro(pre.levels[1], f32), _ro(pre.levels[2], f32), _ro(pre.depth_m, f32),
-        _ro(cam_vector(intr), f64), _ro(intr.dist, f64), _ro(pyr.level_scales(), f64),
+        cam, dist, scales,
         _ro(np.asarray(iterations_fine_to_coarse), i64), _ro(level_n, i64),
         _ro(T0_cur_ref, f64), float(tau_m),
         float(missing_depth_weight), bool(use_depth), float(min_residual_scale),
