@@ -310,8 +310,14 @@ def _speed(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     cpu: dict[str, list[float]] = {k: [] for k in trackers}
     stages: dict[str, dict[str, list[float]]] = {k: {} for k in trackers}
     iters: dict[str, list[int]] = {k: [] for k in trackers}
+    names = list(trackers)
     for f in frames:
-        for name, tr in trackers.items():
+        # the order turns by one each frame: every tracker runs as often right after the
+        # OpenCV peer (whose ~70 ms leave the caches cold) as in any other place (with a
+        # fixed order ``dense`` always ran first, ~0.5 ms slower than the same tracker second)
+        k = f.index % len(names)
+        for name in names[k:] + names[:k]:
+            tr = trackers[name]
             c0, t0 = time.process_time(), time.perf_counter()
             r = tr.track(f)
             t1, c1 = time.perf_counter(), time.process_time()
@@ -429,11 +435,14 @@ RSS_KEYFRAMES = (10, 30, 100, 200)
 def _rss_by_keyframes(points: int, frames: list[Any]) -> dict[str, float | None]:
     """Peak RSS (MB) of a tracking process against the keyframe count: one very slow
     empty-studio sweep (24 s there and back, under 1.5 cm per frame) with keyframes every
-    1.6 cm (about 200 on the 3.3 m rail), thinned evenly to each count of
+    1 cm or frame (about 250 on the 3.3 m rail), thinned evenly to each count of
     :data:`RSS_KEYFRAMES` (a count the sweep did not reach is None)."""
     from engine.studio.paths import RAIL_LENGTH_M
 
-    big = _sweep_store(points, RAIL_LENGTH_M / (max(RSS_KEYFRAMES) + 5), 2 * SWEEP_CYCLE_S).store
+    # a keyframe is added once the camera is kf_dist from all others, so where it moves
+    # more than kf_dist per frame the spacing is a frame's motion (up to 1.4 cm here): at
+    # 1 cm about 250 keyframes on the way out (at 1.6 cm there were 141, and no 200-row)
+    big = _sweep_store(points, RAIL_LENGTH_M / 330.0, 2 * SWEEP_CYCLE_S).store
     ids = [k.id for k in big.keyframes]
     out: dict[str, float | None] = {}
     with tempfile.TemporaryDirectory(prefix="studiotrack-bench-dense-rss-") as tmp:
