@@ -63,7 +63,6 @@ from engine.keyframes.store import (
     Keyframe,
     KeyframeStore,
     KeyframeStoreError,
-    frustum_metric,
     pose_distance,
     same_camera,
 )
@@ -518,9 +517,7 @@ class DenseKeyframeTracker(_DenseBase):
             # keyframe distance of this frame: eq. (21) pixels and eq. (20) range
             th, dist = pose_distance(T_world_cam, kf.T_world_cam)
             in_range = th < math.radians(p.theta_max_deg) and dist < p.d_max_m
-            extras["keyframe_distance_px"] = frustum_metric(
-                self._store.intrinsics, T_world_cam, kf.T_world_cam, self._store.test_points
-            )
+            extras["keyframe_distance_px"] = self._store.metric_to(kf, T_world_cam)
             extras["keyframe_in_range"] = in_range
             degraded = self._degraded_reasons(att.res, in_range)
             self._note_good_pose(frame, T_world_cam, att.res, typical=not degraded)

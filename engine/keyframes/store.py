@@ -159,6 +159,11 @@ class Keyframe:
         return f"Keyframe(id={self.id}, {where})"
 
 
+def _f64(a: NDArray[np.floating]) -> F64:
+    """C-contiguous float64 (the one argument type of the compiled search)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
 def frustum_test_points(intr: Intrinsics, depths_m: tuple[float, ...] = FRUSTUM_DEPTHS_M) -> F64:
     """Three 2D grids of 3D points along viewing rays at the given depths (Fig. 12)."""
     us = np.linspace(0.1, 0.9, _GRID_NX) * intr.width
@@ -203,8 +208,10 @@ class KeyframeStore:
     def __init__(self, intrinsics: Intrinsics, keyframes: list[Keyframe] | None = None) -> None:
         self.intrinsics = intrinsics
         self.keyframes: list[Keyframe] = list(keyframes or [])
-        self._test_pts = frustum_test_points(intrinsics)
-        self._test_uv = _pinhole(intrinsics, self._test_pts)
+        self._test_pts = _f64(frustum_test_points(intrinsics))
+        self._test_uv = _f64(_pinhole(intrinsics, self._test_pts))
+        self._cam = _f64(np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy]))
+        self._far_px = 10.0 * (intrinsics.width + intrinsics.height)  # behind the camera
         # keyframe poses stacked for the search (K, 4, 4), rebuilt when keyframes are added
         self._poses: F64 = np.zeros((0, 4, 4))
 
@@ -269,7 +276,7 @@ class KeyframeStore:
     # -- search, sec. 6.2 ------------------------------------------------------------------
     def _stacked_poses(self) -> F64:
         if self._poses.shape[0] != len(self.keyframes):
-            self._poses = np.stack([k.T_world_cam for k in self.keyframes])
+            self._poses = _f64(np.stack([k.T_world_cam for k in self.keyframes]))
         return self._poses
 
     def _angles_distances(self, T_world_cam: F64) -> tuple[F64, F64, F64, F64]:
@@ -325,13 +332,24 @@ class KeyframeStore:
         metric is evaluated only on Omega (the pre-selection prunes distant keyframes)."""
         if not self.keyframes:
             return None, False, float("inf")
-        theta, dist, R_kc, t_kc = self._angles_distances(T_world_cam)
-        omega = (np.abs(theta) < theta_max_rad) & (dist < d_max_m)  # eq. (20)
-        in_omega = bool(omega.any())
-        pool = np.flatnonzero(omega) if in_omega else np.arange(len(self.keyframes))
-        metric = self._metric(R_kc[pool], t_kc[pool])
-        k = int(np.argmin(metric))  # eq. (21)
-        return self.keyframes[int(pool[k])], in_omega, float(metric[k])
+        # eq. (20) pre-selection, then the eq. (21) minimum: compiled, as it runs once per
+        # tracked frame (the same sums as _angles_distances and _metric)
+        from engine.keyframes import search_kernel
+
+        k, in_omega, m = search_kernel.nearest(
+            self._stacked_poses(), _f64(T_world_cam), self._test_pts, self._test_uv,
+            self._cam, self._far_px, float(theta_max_rad), float(d_max_m),
+        )
+        return self.keyframes[k], bool(in_omega), float(m)
+
+    def metric_to(self, kf: Keyframe, T_world_cam: F64) -> float:
+        """Eq. (21) between a pose and one keyframe (pixels), as :func:`frustum_metric`."""
+        from engine.keyframes import search_kernel
+
+        return float(search_kernel.metric(
+            _f64(kf.T_world_cam[None]), _f64(T_world_cam), self._test_pts, self._test_uv,
+            self._cam, self._far_px,
+        ))
 
     def far_from_all(self, T_world_cam: F64, angle_rad: float, dist_m: float) -> bool:
         """True if the pose differs from every keyframe by more than the angle or distance."""

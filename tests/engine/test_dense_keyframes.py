@@ -153,6 +153,33 @@ def test_nearest_keyframe_eq19_21() -> None:
     assert frustum_metric(intr, T0, T0, pts) == pytest.approx(0.0)
 
 
+def test_compiled_nearest_keyframe_is_the_vectorised_search() -> None:
+    """The per-frame search (compiled) picks the keyframe and metric of the numpy eq. (19)-
+    (21) search (``ranked``/_scores) on random poses, with and without an empty Omega; the
+    single-keyframe metric is :func:`frustum_metric`."""
+    intr = small_intrinsics()
+    st = KeyframeStore(intr)
+    blank = np.zeros((intr.height, intr.width), np.uint8)
+    depth = np.ones((intr.height, intr.width), np.float32)
+    rng = np.random.default_rng(5)
+    for _ in range(25):
+        st.add(se3_exp(rng.normal(0.0, [0.5, 0.1, 0.5, 0.1, 0.3, 0.1])), blank, depth)
+    pts = frustum_test_points(intr)
+    for _ in range(40):
+        T = se3_exp(rng.normal(0.0, [0.6, 0.1, 0.6, 0.1, 0.4, 0.1]))
+        for theta_max, d_max in ((math.radians(30), 0.5), (math.radians(1), 0.01)):
+            kf, in_omega, m = st.nearest_with_metric(T, theta_max, d_max)
+            theta, dist, metric = st._scores(T)
+            omega = (theta < theta_max) & (dist < d_max)
+            pool = np.flatnonzero(omega) if omega.any() else np.arange(len(st))
+            k = int(pool[np.argmin(metric[pool])])
+            assert kf is st.keyframes[k]
+            assert in_omega == bool(omega.any())
+            assert m == pytest.approx(float(metric[k]), rel=1e-9, abs=1e-9)
+            assert st.metric_to(kf, T) == pytest.approx(
+                frustum_metric(intr, T, kf.T_world_cam, pts), rel=1e-9, abs=1e-9)
+
+
 class _ListSource(Source):
     def __init__(self, frames: list) -> None:  # type: ignore[type-arg]
         self._frames = frames
