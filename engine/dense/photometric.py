@@ -130,11 +130,21 @@ def cam_vector(intr: Intrinsics) -> F64:
     return np.array([intr.fx, intr.fy, intr.cx, intr.cy], dtype=np.float64)
 
 
-@functools.lru_cache(maxsize=8)
 def _camera_inputs(intr: Intrinsics) -> tuple[F64, F64, F64]:
     """The per-camera kernel inputs (fx fy cx cy, distortion, level scales), read-only, made
-    once per calibration rather than once per frame."""
-    return (_ro(cam_vector(intr), np.float64), _ro(intr.dist, np.float64),
+    once per calibration rather than once per frame (keyed by value: an Intrinsics built
+    with a list for the distortion is not hashable)."""
+    return _camera_inputs_of(
+        (float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy)),
+        tuple(float(v) for v in intr.dist_k1k2p1p2k3),
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _camera_inputs_of(
+    fxfycxcy: tuple[float, ...], dist: tuple[float, ...]
+) -> tuple[F64, F64, F64]:
+    return (_ro(np.array(fxfycxcy), np.float64), _ro(np.array(dist), np.float64),
             _ro(pyr.level_scales(), np.float64))
 
 
