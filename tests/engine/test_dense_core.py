@@ -200,7 +200,8 @@ def test_pyramid_of_8bit_images_is_the_opencv_pyramid() -> None:
         fast = build_pyramid(g)
         ref = build_pyramid(g.astype(np.float32))
         for a, b in zip(fast, ref, strict=True):
-            assert a.shape == b.shape and a.dtype == np.float32
+            assert a.shape == b.shape
+            assert a.dtype == np.float32
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-4)
 
 
