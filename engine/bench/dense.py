@@ -315,8 +315,8 @@ def _speed(args: argparse.Namespace, store: Any) -> dict[str, Any]:
         # the order turns by one each frame: every tracker runs as often right after the
         # OpenCV peer (whose ~70 ms leave the caches cold) as in any other place (with a
         # fixed order ``dense`` always ran first, ~0.5 ms slower than the same tracker second)
-        k = f.index % len(names)
-        for name in names[k:] + names[:k]:
+        turn = f.index % len(names)
+        for name in names[turn:] + names[:turn]:
             tr = trackers[name]
             c0, t0 = time.process_time(), time.perf_counter()
             r = tr.track(f)

@@ -1064,7 +1064,7 @@ def pyramid_u8(g: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                 c = 2 * x - 2 + j
                 c = -c if c < 0 else (2 * (w - 1) - c if c >= w else c)
                 kj = k0 if (j == 0 or j == 5) else (k1 if (j == 1 or j == 4) else k2)
-                acc += kj * np.float32(row[c])
+                acc += kj * float(row[c])
             tmp[r, x] = acc
     l0 = np.empty((h2, w2), dtype=np.float32)
     for y in range(h2):

@@ -29,7 +29,7 @@ def _metric_one(Tk: np.ndarray, k: int, T: np.ndarray, pts: np.ndarray, uv: np.n
         t[a] = (Tk[k, 0, a] * (T[0, 3] - Tk[k, 0, 3]) + Tk[k, 1, a] * (T[1, 3] - Tk[k, 1, 3])
                 + Tk[k, 2, a] * (T[2, 3] - Tk[k, 2, 3]))
     s = 0.0
-    n = pts.shape[0]
+    n: int = pts.shape[0]
     for i in range(n):
         px, py, pz = pts[i, 0], pts[i, 1], pts[i, 2]
         qx = R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz + t[0]
