@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -61,6 +62,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--search-frames", type=int, default=200,
                         help="leave-one-out search: frames of each sequence a candidate runs "
                              "on (the held-out run uses the whole sequence)")
+    parser.add_argument("--loo-cache", default="",
+                        help="folder keeping the leave-one-out scores between runs, keyed by "
+                             "candidate, sequence and a fingerprint of the code they depend on "
+                             "(default: $XDG_CACHE_HOME/studiotrack or ~/.cache/studiotrack; "
+                             "'none' = recompute everything)")
     parser.add_argument("--skip-loo", action="store_true",
                         help="skip the leave-one-sequence-out default selection")
     parser.add_argument("--skip-loss", action="store_true", help="skip the loss scenarios")
@@ -142,39 +148,39 @@ def _auc(frames: list[Frame], params: Any) -> float:
 
 
 def _loo(seqs: list[str], args: argparse.Namespace) -> dict[str, Any]:
+    import inspect
+
     from engine.bench import presenter_loo as loo
     from engine.bench import presenter_scenarios as sc
     from engine.presenter.params import PresenterParams
 
-    cache: dict[tuple[Any, str, int], float] = {}
-    feasible_cache: dict[Any, bool] = {}
+    # the scoring code of this module is part of what a score depends on
+    own = "".join(inspect.getsource(f) for f in (presenter_params, make_tracker, run_tracker,
+                                                 score, _auc))
+    cache = loo.ScoreCache(_loo_cache_dir(args), loo.code_fingerprint(own))
 
     def auc_n(c: loo.Overrides, seq: str, n: int) -> float:
-        key = (c, seq, n)
-        if key not in cache:
-            cache[key] = _auc(load(seq, args.frames)[:n] if n else load(seq, args.frames),
-                              presenter_params("presenter", args.particles, **dict(c)))
-        return cache[key]
+        key = cache.key("auc", c, seq, n, args.frames, args.particles)
+        return float(cache.get(key, lambda: _auc(
+            load(seq, args.frames)[:n] if n else load(seq, args.frames),
+            presenter_params("presenter", args.particles, **dict(c)))))
+
+    def check(c: loo.Overrides) -> bool:
+        def run(frames: list[Frame]) -> list[Any]:
+            t = make_tracker("presenter", args.particles, **dict(c))
+            return [t.track(f) for f in frames]
+        def run_box(frames: list[Frame]) -> list[Any]:
+            t = make_tracker("presenter", args.particles, use_part_boxes=False, **dict(c))
+            return [t.track(f) for f in frames]
+        return sc.meets_check_goals(run, run_box)
+
+    feasible_seen: dict[loo.Overrides, bool] = {}
 
     def feasible(c: loo.Overrides) -> bool:
-        if c not in feasible_cache:
-            def run(frames: list[Frame]) -> list[Any]:
-                t = make_tracker("presenter", args.particles, **dict(c))
-                return [t.track(f) for f in frames]
-            def run_box(frames: list[Frame]) -> list[Any]:
-                # the same walk with the model split from the first box (no part boxes)
-                t = make_tracker("presenter", args.particles, use_part_boxes=False, **dict(c))
-                return [t.track(f) for f in frames]
-            desk = sc.desk_loss(run, "check")
-            walk = sc.walk_false_lost(run, "check")
-            walk_box = sc.walk_false_lost(run_box, "check")
-            # TRACKING on the empty desk with a model split from the box (the page's
-            # "Split 3") rules a candidate out as well
-            desk_box = sc.desk_loss(run_box, "check")
-            feasible_cache[c] = (sc.meets_loss_goals(desk, walk)
-                                 and walk_box["false_lost_frames"] == 0
-                                 and desk_box.get("false_lock_frames", 1) == 0)
-        return feasible_cache[c]
+        if c not in feasible_seen:
+            key = cache.key("feasible", c, args.particles)
+            feasible_seen[c] = bool(cache.get(key, lambda: check(c)))
+        return feasible_seen[c]
 
     n_search = max(args.search_frames, 2)
     t0 = time.process_time()
@@ -188,13 +194,33 @@ def _loo(seqs: list[str], args: argparse.Namespace) -> dict[str, Any]:
         "missing the loss goals on the check scenarios excluded; held-out run on the whole "
         "sequence")
     out["knobs"] = {k.name: list(k.values) for k in (*loo.COARSE, *loo.FINE)}
-    out["candidates_feasible"] = int(sum(feasible_cache.values()))
-    out["candidates_checked"] = len(feasible_cache)
-    out["runs"] = len(cache)
+    out["candidates_feasible"] = int(sum(feasible_seen.values()))
+    out["candidates_checked"] = len(feasible_seen)
+    out["runs"] = cache.hits + cache.misses
+    out["cache"] = {"folder": None if cache.path is None else str(cache.path.parent),
+                    "fingerprint": cache.fingerprint, "hits": cache.hits,
+                    "computed": cache.misses}
+    out["heldout_auc"] = {s: f["success_auc_heldout"] for s, f in out["folds"].items()}
     out["shipped_default_matches"] = loo.shipped_matches(out["global_choice"],
                                                         PresenterParams())
+    shipped = PresenterParams()
+    out["shipped_differs"] = {k: {"shipped": getattr(shipped, k), "chosen": v}
+                              for k, v in out["global_choice"].items()
+                              if getattr(shipped, k) != v}
     out["cpu_s"] = round(time.process_time() - t0, 1)
     return out
+
+
+def _loo_cache_dir(args: argparse.Namespace) -> Path | None:
+    import os
+
+    given = (args.loo_cache or "").strip()
+    if given.lower() == "none":
+        return None
+    if given:
+        return Path(given).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "studiotrack"
 
 
 def _loss(args: argparse.Namespace) -> dict[str, Any]:

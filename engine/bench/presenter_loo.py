@@ -16,13 +16,19 @@ The protocol (run by ``studiotrack bench presenter``; nothing here is fixed by h
 5. the global choice is the same procedure on all sequences; it is what ``PresenterParams``
    ships as defaults, and the bench says whether the shipped defaults equal it.
 
-Every (candidate, sequence) run is done once per process and shared by the folds.
+Every (candidate, sequence) run is done once and shared by the folds: the folds differ only in
+which columns of the (candidate x sequence) AUC table they average, so the whole selection is
+a handful of distinct candidates' runs (the bench also keeps the table on disk, keyed by the
+candidate and a fingerprint of the code and data it depends on, ``engine.bench.presenter``).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -52,6 +58,10 @@ FINE: tuple[Knob, ...] = (
     Knob("loss_bg_quantile", (0.1, 0.3, 0.5), start=0.1),
     Knob("loss_reference", ("first", "anchored"), start="first"),
     Knob("loss_bg_weighting", (0.0, 0.5, 1.0), start=1.0),
+    Knob("loss_motion", (0.0, 0.1, 0.2, 0.3), start=0.2),
+    Knob("loss_frames", (2, 3, 4), start=2),
+    Knob("model_update_rate", (0.02, 0.05, 0.1), start=0.05),
+    Knob("reacquire_frames", (1, 2), start=2),
     Knob("velocity_gain", (0.25, 0.5, 0.75), start=0.5),
     Knob("fit_width", (True, False), start=True),
     Knob("fit_width_max_frac", (1.6, 2.2), start=2.2),
@@ -91,24 +101,29 @@ class Selection:
         return float(np.mean(means))
 
     def choose(self, train: Sequence[str]) -> tuple[Overrides, float]:
-        """Coarse grid, then fine moves; feasible candidates only (ties: the earlier one)."""
+        """Coarse grid, then fine moves; feasible candidates only (ties: the earlier one).
+
+        Feasibility is asked only of a candidate that would be taken (the best-scoring coarse
+        ones in turn, a fine move that improves): the same choice as checking all of them,
+        for a fraction of the loss-scenario runs.
+        """
+        grid = coarse_grid()
+        scores = [self.score(c, train) for c in grid]
         best: Overrides | None = None
         best_score = -np.inf
-        for c in coarse_grid():
-            if not self.feasible(c):
-                continue
-            sc = self.score(c, train)
-            if sc > best_score:
-                best, best_score = c, sc
+        for i in sorted(range(len(grid)), key=lambda i: (-scores[i], i)):
+            if self.feasible(grid[i]):
+                best, best_score = grid[i], scores[i]
+                break
         if best is None:
             raise RuntimeError("no candidate meets the loss goals on the check scenarios")
         for knob in FINE:
             for v in knob.values:
                 c = _with(best, knob.name, v)
-                if c == best or not self.feasible(c):
+                if c == best:
                     continue
                 sc = self.score(c, train)
-                if sc > best_score + 1e-9:
+                if sc > best_score + 1e-9 and self.feasible(c):
                     best, best_score = c, sc
         return best, best_score
 
@@ -131,3 +146,88 @@ def run_loo(sequences: Sequence[str], studio: Sequence[str], auc: AucFn,
 
 def shipped_matches(choice: Mapping[str, Any], defaults: Any) -> bool:
     return all(getattr(defaults, k) == v for k, v in choice.items())
+
+
+# ------------------------------------------------------------------------------ disk cache
+
+#: what a (candidate, sequence) score depends on besides the candidate: the tracker, the
+#: renderer of the studio sequences and scenarios, the sources, the scoring. Not the
+#: parameter file: a candidate sets every knob itself, so only the other parameters'
+#: defaults count (``code_fingerprint``), and shipping a new default keeps the table
+FINGERPRINT_PATHS = ("engine/presenter", "engine/studio", "engine/sources", "engine/evaluation",
+                     "engine/trackers/presenter.py", "engine/trackers/base.py",
+                     "engine/particles.py", "engine/arrays.py", "engine/frames.py",
+                     "engine/bench/presenter_data.py", "engine/bench/presenter_scenarios.py")
+
+
+def knob_names() -> frozenset[str]:
+    return frozenset(k.name for k in (*COARSE, *FINE))
+
+
+def code_fingerprint(extra: str = "", root: Path | None = None) -> str:
+    """sha1 over the sources in ``FINGERPRINT_PATHS`` (``engine/presenter/params.py`` only
+    through the defaults of the parameters no knob sets and the presets), ``extra`` (the
+    bench's own scoring code) and the numpy/OpenCV versions: any change to what a score
+    depends on starts a new table."""
+    import dataclasses
+
+    import cv2
+
+    from engine.presenter.params import PresenterParams
+
+    root = root or Path(__file__).resolve().parents[2]
+    h = hashlib.sha1(f"{np.__version__} {cv2.__version__}".encode())
+    h.update(extra.encode())
+    names = knob_names()
+    fixed = {f.name: getattr(PresenterParams(), f.name)
+             for f in dataclasses.fields(PresenterParams) if f.name not in names}
+    h.update(repr(sorted(fixed.items())).encode())
+    h.update(repr({k: sorted(v.values.items())
+                   for k, v in PresenterParams.PRESETS.items()}).encode())
+    for rel in FINGERPRINT_PATHS:
+        p = root / rel
+        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        for f in files:
+            if f.is_file() and f.name != "params.py":
+                h.update(str(f.relative_to(root)).encode())
+                h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+class ScoreCache:
+    """(key -> number) table kept in one JSON file per code fingerprint under ``folder``
+    (written atomically after each new entry, so an interrupted run resumes); ``folder``
+    None = in memory only."""
+
+    def __init__(self, folder: Path | None, fingerprint: str) -> None:
+        self.path = None if folder is None else folder / f"presenter_loo_{fingerprint}.json"
+        self.fingerprint = fingerprint
+        self.table: dict[str, Any] = {}
+        self.hits = 0
+        self.misses = 0
+        if self.path is not None and self.path.is_file():
+            try:
+                data = json.loads(self.path.read_text())
+                if data.get("fingerprint") == fingerprint:
+                    self.table = dict(data.get("scores", {}))
+            except (OSError, ValueError):
+                self.table = {}  # unreadable: start afresh (it is only a cache)
+
+    @staticmethod
+    def key(*parts: Any) -> str:
+        return hashlib.sha1(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()
+
+    def get(self, key: str, compute: Callable[[], Any]) -> Any:
+        if key in self.table:
+            self.hits += 1
+            return self.table[key]
+        self.misses += 1
+        value = compute()
+        self.table[key] = value
+        if self.path is not None:
+            from engine.persist import atomic_write_json
+
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_json(self.path, {"fingerprint": self.fingerprint,
+                                          "scores": self.table})
+        return value

@@ -46,7 +46,12 @@ DESK = {
 WALK = {
     "report": _BASE + "seed=3",
     "check": _BASE + "seed=22,presenter_look=3,width=320,height=240",
+    # a walk across a side key: the presenter's colours change along the walk (a studio's
+    # light is never even), which the first frame's colours alone do not foresee
+    "check_light": _BASE + "seed=23,presenter_look=1,lighting=side,width=320,height=240",
 }
+#: the walks the default selection checks (``meets_check_goals``)
+CHECK_WALKS = ("check", "check_light")
 DISTRACTOR = {
     "cross_same_look": _BASE + "seed=3,person2=cross,person2_look=0,presenter_look=0",
     "cross_other_look": _BASE + "seed=4,person2=cross,person2_look=1,presenter_look=5",
@@ -68,12 +73,21 @@ DESK_HELDOUT = (
     _BASE + _LEAVE + "seed=65,presenter_look=6,lighting=side,presenter_x=0.6,width=320,"
                      "height=240",
     _BASE + _LEAVE + "seed=66,presenter_look=1,presenter_x=-0.1",
+    # added with the loss test's motion cue, run for the first time in the bench's report
+    _BASE + _LEAVE + "seed=67,presenter_look=3,lighting=side,presenter_x=0.4",
+    _BASE + _LEAVE + "seed=68,presenter_look=0,lighting=ramp,presenter_x=0.1,width=480,"
+                     "height=360",
 )
 WALK_HELDOUT = (
     _BASE + "seed=71,presenter_look=0,lighting=side",
     _BASE + "seed=72,presenter_look=2,lighting=cool,width=480,height=360",
     _BASE + "seed=73,presenter_look=5,lighting=warm",
     _BASE + "seed=74,presenter_look=6,lighting=bright,width=320,height=240",
+    # added with the loss test's motion cue, run for the first time in the bench's report
+    _BASE + "seed=75,presenter_look=1,lighting=side,width=480,height=360",
+    _BASE + "seed=76,presenter_look=3,lighting=dim",
+    _BASE + "seed=77,presenter_look=4,lighting=ramp",
+    _BASE + "seed=78,presenter_look=2,lighting=side,width=320,height=240",
 )
 
 _CACHE: dict[str, list[Frame]] = {}
@@ -192,6 +206,20 @@ def meets_loss_goals(desk: dict[str, Any], walk: dict[str, Any]) -> bool:
     d, r = desk.get("frames_to_detect"), desk.get("frames_to_reacquire")
     return (d is not None and d <= DETECT_GOAL_FRAMES and r is not None
             and r <= REACQUIRE_GOAL_FRAMES and walk.get("false_lost_frames", 1) == 0)
+
+
+def meets_check_goals(run: Runner, run_box: Runner) -> bool:
+    """What the default selection asks of a candidate (``check`` scenarios only): the loss
+    goals on the check desk and every check walk with the studio's part boxes as the model,
+    and, with the model split from the first box (what a bare box gives, e.g. "Split 3" on
+    the page), no false LOST in the check walks and no TRACKING on the empty desk."""
+    desk = desk_loss(run, "check")
+    walks = [walk_false_lost(run, w) for w in CHECK_WALKS]
+    if not all(meets_loss_goals(desk, w) for w in walks):
+        return False
+    if any(walk_false_lost(run_box, w)["false_lost_frames"] > 0 for w in CHECK_WALKS):
+        return False
+    return bool(desk_loss(run_box, "check").get("false_lock_frames", 1) == 0)
 
 
 def distractor(run: Runner, case: str) -> dict[str, Any]:

@@ -474,8 +474,13 @@ class MotionHistory:
         self._prev = gray_u8.copy()
         return mhi
 
-    def motion_integral(self) -> NDArray[np.int32]:
-        """Integral image (H+1, W+1) of the motion mask (MHI > 0)."""
+    def motion_integral(self, recent_frames: int = 0) -> NDArray[np.int32]:
+        """Integral image (H+1, W+1) of the motion mask (MHI > 0); with ``recent_frames``
+        > 0 only of the pixels that changed in the last ``recent_frames`` frames."""
         assert self.mhi is not None
-        mask = (self.mhi > 0).astype(np.uint8)
+        if recent_frames > 0:
+            floor = max(min(self.duration_frames, 255) - recent_frames, 0)
+            mask = (self.mhi > floor).astype(np.uint8)
+        else:
+            mask = (self.mhi > 0).astype(np.uint8)
         return i32(cv2.integral(mask, sdepth=cv2.CV_32S))

@@ -21,7 +21,7 @@ PAPER_PRESET = Preset(
     "the VR-TV paper's filter as published: random walk in x, y, h, fixed model, "
     "Pmin = 10 % of Pref",
     velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, mode_seek=False, model_update_rate=0.0,
-    bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood",
+    bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100)
 
 
@@ -108,6 +108,14 @@ class PresenterParams(Params):
                                      "min(1, o*/o_b)^this, o = colours of a ring around the "
                                      "first box (as bg_weighting): what the set around the "
                                      "presenter shows does not count as the presenter; 0 = off")
+    loss_motion: float = param(0.2, lo=0.0, hi=1.0, step=0.05,
+                               help="contrast loss test, motion cue (static camera): while "
+                               "TRACKING, no LOST when the fraction of pixels under the "
+                               "patches that moved in the last frames exceeds the most "
+                               "moving tenth of the background boxes' by this much (the "
+                               "presenter walking through light the first frame did not "
+                               "show); a moving camera moves the background too and turns it "
+                               "off by itself; 0 = off")
     loss_percent: float = param(0.1, lo=0.0, hi=100.0, step=0.01,
                                 help="likelihood loss test: loss when P(z_col|s) < Pmin = this "
                                 "% of Pref, i.e. sum B^2 worse than the reference by "

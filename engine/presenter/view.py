@@ -86,6 +86,11 @@ FULL_BODY_ASPECT = 0.5
 #: taken as the background's level is ``PresenterParams.loss_bg_quantile``)
 BG_SAMPLES = 96
 BG_EVERY = 3  # frames between two background samplings (it changes slowly)
+#: motion cue of the loss test: pixels that changed in this many last frames count as moving
+#: (the motion history holds ``mhi_duration_frames``, too long to notice the target has gone)
+MOTION_RECENT_FRAMES = 3
+#: the background's motion level: this quantile of the sampled boxes' moving fraction
+MOTION_BG_QUANTILE = 0.9
 
 
 @dataclass(frozen=True, slots=True)
@@ -160,6 +165,9 @@ class ViewTracker:
         self._bg_rng = np.random.default_rng([params.seed, 17])
         self._last_fixed: F64 | None = None
         self.loss_z = float("nan")
+        self._recent_motion: Any = None  # this frame's integral of recent motion (lazy)
+        self._motion_bg: float | None = None  # the background boxes' moving fraction
+        self.motion_margin = float("nan")  # moving fraction at the estimate minus that
 
     # ------------------------------------------------------------------ configuration
 
@@ -273,6 +281,35 @@ class ViewTracker:
                             self._sqrt_ref0)
         beta = np.quantile(r, self.params.loss_bg_quantile, axis=0)
         self._beta = beta if self._beta is None else self._beta + 0.2 * (beta - self._beta)
+        recent = self._recent_motion_integral()
+        if recent is not None:
+            boxes = np.stack([cx[keep], cy[keep], hs[keep]], axis=1)
+            moving = 1.0 - motion_residuals(recent, boxes, self._rel, self.model.aspect,
+                                            MOTION_STEP)
+            self._motion_bg = float(np.quantile(moving, MOTION_BG_QUANTILE))
+
+    def _recent_motion_integral(self) -> Any:
+        """Integral of the pixels that moved in the last ``MOTION_RECENT_FRAMES`` frames
+        (once per frame; None when the motion cue of the loss test is off)."""
+        p = self.params
+        if p.loss_motion <= 0 or not p.use_motion or self.motion.mhi is None:
+            return None
+        if self._recent_motion is None:
+            self._recent_motion = self.motion.motion_integral(MOTION_RECENT_FRAMES)
+        return self._recent_motion
+
+    def _moving_target(self, xyh: F64) -> bool:
+        """Motion cue of the loss test: the patches at ``xyh`` hold more recent motion than
+        the most moving tenth of the background by ``loss_motion`` (eq. 4's motion image, as
+        a fraction of the patches' area)."""
+        recent = self._recent_motion_integral()
+        if recent is None or self._motion_bg is None:
+            self.motion_margin = float("nan")
+            return False
+        moving = 1.0 - float(motion_residuals(recent, xyh[None, :], self._rel,
+                                              self.model.aspect, MOTION_STEP)[0])
+        self.motion_margin = moving - self._motion_bg
+        return self.motion_margin > self.params.loss_motion
 
     def _loss_z(self, ctx: Any, xyh: F64) -> float:
         """z = median over the patches of (B_p^2 - mu_p) / (beta_p - mu_p) at ``xyh`` (NaN
@@ -363,6 +400,7 @@ class ViewTracker:
             self.motion.update(np.ascontiguousarray(bgr[::MOTION_STEP, ::MOTION_STEP, 1]))
             timings["motion_ms"] = (time.perf_counter() - t0) * 1000.0
         self._gains = grey_world_gains(bgr) if self.model.grey_world else None
+        self._recent_motion = None
         first = len(self.particles) == 0
         if first and (p.bg_weighting > 0 or p.loss_bg_weighting > 0):
             self._background_weights(bgr)
@@ -430,6 +468,10 @@ class ViewTracker:
         p_min = p.loss_percent / 100.0 * self.p_ref
         if p.loss_test == "contrast" and math.isfinite(z):
             bad = z > p.loss_contrast
+            if bad and self.state == TRACKING and p.loss_motion > 0:
+                # the colours moved away from the first frame's, but the patches move as
+                # the presenter does and the background does not: still the presenter
+                bad = not self._moving_target(probe)
         elif p.loss_test == "contrast":
             bad = False  # no background beside the target to compare with: never LOST
         else:

@@ -67,3 +67,77 @@ def test_studio_and_real_sequences_weigh_alike() -> None:
     sel = loo.Selection(auc=lambda c, s: {"st1": 1.0, "st2": 1.0, "st3": 1.0, "r": 0.0}[s],
                         feasible=lambda c: True, studio=frozenset({"st1", "st2", "st3"}))
     assert sel.score(loo.coarse_grid()[0], ["st1", "st2", "st3", "r"]) == pytest.approx(0.5)
+
+
+def _eager_choose(sel: loo.Selection, train: list[str]) -> Any:
+    """The selection as specified: feasibility of every candidate, then the best."""
+    best, best_score = None, -float("inf")
+    for c in loo.coarse_grid():
+        if sel.feasible(c):
+            sc = sel.score(c, train)
+            if sc > best_score:
+                best, best_score = c, sc
+    assert best is not None
+    for knob in loo.FINE:
+        for v in knob.values:
+            c = loo._with(best, knob.name, v)
+            if c != best and sel.feasible(c):
+                sc = sel.score(c, train)
+                if sc > best_score + 1e-9:
+                    best, best_score = c, sc
+    return best, best_score
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_lazy_feasibility_chooses_what_checking_all_would(seed: int) -> None:
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    table: dict[Any, float] = {}
+    infeasible: dict[Any, bool] = {}
+    checked: list[Any] = []
+
+    def auc(c: Any, s: str) -> float:
+        return table.setdefault((c, s), float(rng.uniform()))
+
+    def feasible(c: Any) -> bool:
+        checked.append(c)
+        return not infeasible.setdefault(c, bool(rng.uniform() < 0.4))
+
+    seqs = ["a", "b", "c", "d"]
+    lazy = loo.Selection(auc=auc, feasible=feasible, studio=frozenset({"a", "b"}))
+    got = lazy.choose(seqs[1:])
+    n_lazy = len(set(checked))
+    checked.clear()
+    assert got == _eager_choose(lazy, seqs[1:])
+    assert n_lazy < len(set(checked))
+
+
+def test_score_cache_is_kept_per_fingerprint(tmp_path: Any) -> None:
+    calls: list[int] = []
+
+    def compute() -> float:
+        calls.append(1)
+        return 0.5
+
+    a = loo.ScoreCache(tmp_path, "f1")
+    k = a.key("auc", (("ring_weight", 0.5),), "studio", 200)
+    assert a.get(k, compute) == 0.5
+    assert loo.ScoreCache(tmp_path, "f1").get(k, compute) == 0.5  # read back from disk
+    assert len(calls) == 1
+    assert loo.ScoreCache(tmp_path, "f2").get(k, compute) == 0.5  # other code: recomputed
+    assert len(calls) == 2
+    assert loo.ScoreCache(None, "f1").get(k, compute) == 0.5
+    assert len(calls) == 3
+
+
+def test_fingerprint_ignores_the_knobs_defaults_only() -> None:
+    import dataclasses
+
+    from engine.presenter.params import PresenterParams
+
+    names = loo.knob_names()
+    fields = {f.name for f in dataclasses.fields(PresenterParams)}
+    assert names <= fields
+    assert len(loo.code_fingerprint()) == 16
+    assert loo.code_fingerprint("x") != loo.code_fingerprint("y")

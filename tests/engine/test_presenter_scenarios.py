@@ -74,3 +74,21 @@ def test_box_split_model_never_claims_tracking_on_the_empty_set(
     # counted) is fooled by it
     old = sc.desk_loss(runner(loss_reference="anchored", loss_bg_weighting=0.0), "trap")
     assert old["false_lock_frames"] > 20
+
+
+def test_motion_cue_keeps_a_box_split_model_through_a_side_lit_walk(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Walking across a side key, a box-split model's colours leave the first frame's: the
+    colour test alone calls the walking presenter LOST; the motion cue does not."""
+    from engine.presenter.params import PresenterParams
+
+    monkeypatch.setitem(sc.N_FRAMES, "walk", 160)
+
+    def runner(**changes: Any) -> Any:
+        def run(frames: list[Frame]) -> list[Any]:
+            t = create_tracker("presenter", PresenterParams(use_part_boxes=False, **changes))
+            return [t.track(f) for f in frames]
+        return run
+
+    assert sc.walk_false_lost(runner(loss_motion=0.0), "check_light")["false_lost_frames"] > 10
+    assert sc.walk_false_lost(runner(loss_motion=0.2), "check_light")["false_lost_frames"] == 0
