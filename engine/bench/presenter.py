@@ -159,8 +159,15 @@ def _loo(seqs: list[str], args: argparse.Namespace) -> dict[str, Any]:
                                                  score, _auc))
     cache = loo.ScoreCache(_loo_cache_dir(args), loo.code_fingerprint(own))
 
+    data: dict[str, str] = {}
+
+    def data_of(seq: str) -> str:
+        if seq not in data:
+            data[seq] = loo.frames_fingerprint(load(seq, args.frames))
+        return data[seq]
+
     def auc_n(c: loo.Overrides, seq: str, n: int) -> float:
-        key = cache.key("auc", c, seq, n, args.frames, args.particles)
+        key = cache.key("auc", c, seq, data_of(seq), n, args.frames, args.particles)
         return float(cache.get(key, lambda: _auc(
             load(seq, args.frames)[:n] if n else load(seq, args.frames),
             presenter_params("presenter", args.particles, **dict(c)))))
@@ -178,7 +185,7 @@ def _loo(seqs: list[str], args: argparse.Namespace) -> dict[str, Any]:
 
     def feasible(c: loo.Overrides) -> bool:
         if c not in feasible_seen:
-            key = cache.key("feasible", c, args.particles)
+            key = cache.key("feasible", c, args.particles, sc.check_fingerprint())
             feasible_seen[c] = bool(cache.get(key, lambda: check(c)))
         return feasible_seen[c]
 
@@ -198,7 +205,7 @@ def _loo(seqs: list[str], args: argparse.Namespace) -> dict[str, Any]:
     out["candidates_checked"] = len(feasible_seen)
     out["runs"] = cache.hits + cache.misses
     out["cache"] = {"folder": None if cache.path is None else str(cache.path.parent),
-                    "fingerprint": cache.fingerprint, "hits": cache.hits,
+                    "code_fingerprint": cache.fingerprint, "hits": cache.hits,
                     "computed": cache.misses}
     out["heldout_auc"] = {s: f["success_auc_heldout"] for s, f in out["folds"].items()}
     out["shipped_default_matches"] = loo.shipped_matches(out["global_choice"],

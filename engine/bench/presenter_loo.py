@@ -150,14 +150,30 @@ def shipped_matches(choice: Mapping[str, Any], defaults: Any) -> bool:
 
 # ------------------------------------------------------------------------------ disk cache
 
-#: what a (candidate, sequence) score depends on besides the candidate: the tracker, the
-#: renderer of the studio sequences and scenarios, the sources, the scoring. Not the
+#: what a (candidate, sequence) score depends on besides the candidate and the frames (which
+#: are hashed themselves, ``frames_fingerprint``): the tracker and the scoring. Not the
 #: parameter file: a candidate sets every knob itself, so only the other parameters'
-#: defaults count (``code_fingerprint``), and shipping a new default keeps the table
-FINGERPRINT_PATHS = ("engine/presenter", "engine/studio", "engine/sources", "engine/evaluation",
-                     "engine/trackers/presenter.py", "engine/trackers/base.py",
-                     "engine/particles.py", "engine/arrays.py", "engine/frames.py",
-                     "engine/bench/presenter_data.py", "engine/bench/presenter_scenarios.py")
+#: defaults count (``code_fingerprint``), and shipping a new default keeps the table; not the
+#: second view's and the robot's modules (no sequence or check scenario uses them)
+FINGERPRINT_PATHS = ("engine/presenter", "engine/evaluation", "engine/trackers/presenter.py",
+                     "engine/trackers/base.py", "engine/particles.py", "engine/arrays.py",
+                     "engine/frames.py", "engine/bench/presenter_scenarios.py")
+_NOT_FINGERPRINTED = frozenset({"params.py", "twoview.py", "robot_sim.py"})
+
+
+def frames_fingerprint(frames: Sequence[Any]) -> str:
+    """sha1 of what a tracker and the scoring see of the frames: pixels, times, truth."""
+    from engine.studio.sim import StudioTruth
+
+    h = hashlib.sha1()
+    for f in frames:
+        h.update(repr((f.index, f.timestamp_s, f.gt_box_xywh)).encode())
+        if f.color_bgr is not None:
+            h.update(np.ascontiguousarray(f.color_bgr).data)
+        t = f.payload(StudioTruth)
+        if t is not None:
+            h.update(repr((t.presenter_pixels, t.presenter_part_boxes)).encode())
+    return h.hexdigest()[:16]
 
 
 def knob_names() -> frozenset[str]:
@@ -188,7 +204,7 @@ def code_fingerprint(extra: str = "", root: Path | None = None) -> str:
         p = root / rel
         files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
         for f in files:
-            if f.is_file() and f.name != "params.py":
+            if f.is_file() and f.name not in _NOT_FINGERPRINTED:
                 h.update(str(f.relative_to(root)).encode())
                 h.update(f.read_bytes())
     return h.hexdigest()[:16]

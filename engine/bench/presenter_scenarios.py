@@ -222,6 +222,15 @@ def meets_check_goals(run: Runner, run_box: Runner) -> bool:
     return bool(desk_loss(run_box, "check").get("false_lock_frames", 1) == 0)
 
 
+def check_fingerprint() -> str:
+    """sha1 of the frames of the scenarios ``meets_check_goals`` runs (rendered here)."""
+    from engine.bench.presenter_loo import frames_fingerprint
+
+    specs = [DESK["check"].format(n=N_FRAMES["desk"])] + [
+        WALK[w].format(n=N_FRAMES["walk"]) for w in CHECK_WALKS]
+    return frames_fingerprint([f for s in specs for f in frames_of(s)])
+
+
 def distractor(run: Runner, case: str) -> dict[str, Any]:
     from engine.evaluation.boxes import box_scores
     from engine.trackers.base import TrackState
