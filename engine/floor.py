@@ -261,7 +261,9 @@ class OverheadView(FramePayload):
     second filter; the built-in studio gives it every frame as truth); ``floor_calibration``
     maps its image to the floor; ``timestamp_s`` is the second camera's own time stamp (a
     two-view source pairs frames by it); ``floor_xy_m_true`` is the presenter's true floor
-    position where a simulator knows it.
+    position where a simulator knows it. ``part_boxes`` are the presenter's patches in it
+    (name, x y w h) where the source knows them (the built-in studio's labels stand in for
+    the operator's patches, as on the frontal view); else the box is split.
     """
 
     light: ClassVar[bool] = False
@@ -270,6 +272,7 @@ class OverheadView(FramePayload):
     floor_calibration: FloorCalibration | None = None
     timestamp_s: float | None = None
     floor_xy_m_true: tuple[float, float] | None = None
+    part_boxes: tuple[tuple[str, tuple[float, float, float, float]], ...] = ()
 
     def __post_init__(self) -> None:
         readonly(self.color_bgr)

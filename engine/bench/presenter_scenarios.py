@@ -269,19 +269,32 @@ TWO_VIEW = {
 
 
 def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, Any]:
-    """The presenter's floor distance d from the second view against the studio's truth."""
+    """The presenter's floor distance d and floor position from the second view against the
+    studio's truth, and the loss decided on both views.
+
+    d alone hides errors along the circle around the robot (a presenter walking across the
+    set keeps d nearly constant), so the floor position error is reported beside it.
+    ``false_lost_frames``: LOST while the presenter is in view of both cameras (the paper's
+    rule: a loss in either view is a loss), with the frames each view said LOST.
+    """
     from engine.floor import OverheadView
     from engine.trackers.base import TrackState
 
     spec = TWO_VIEW[variant].format(n=n)
     frames = frames_of(spec)
     results = run(frames)
-    errs, d_true, both = [], [], 0
+    errs, d_true, floor_errs, both = [], [], [], 0
+    false_lost = lost_front = lost_over = 0
     for f, r in zip(frames, results, strict=True):
         over = f.payload(OverheadView)
         det = r.details
         if r.state == TrackState.TRACKING:
             both += 1
+        in_view = f.gt_box_xywh is not None and over is not None and over.box_xywh is not None
+        if det is not None and in_view:
+            false_lost += int(r.state == TrackState.LOST)
+            lost_front += int(getattr(det, "frontal_state", "TRACKING") != "TRACKING")
+            lost_over += int(getattr(det, "overhead_state", "TRACKING") != "TRACKING")
         if over is None or over.floor_xy_m_true is None or det is None \
                 or getattr(det, "d_m", None) is None or over.floor_calibration is None:
             continue
@@ -290,13 +303,22 @@ def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, An
         dt = float(np.hypot(tx - rx, ty - ry))
         errs.append(abs(float(det.d_m) - dt))
         d_true.append(dt)
+        fx, fy = det.floor_xy_m
+        floor_errs.append(float(np.hypot(fx - tx, fy - ty)))
     out: dict[str, Any] = {"source": spec, "frames": len(frames), "frames_with_d": len(errs),
-                           "frames_tracking_both_views": both}
+                           "frames_tracking_both_views": both,
+                           "false_lost_frames": false_lost,
+                           "frontal_lost_frames": lost_front,
+                           "overhead_lost_frames": lost_over}
     if errs:
         e = np.asarray(errs)
         out["d_err_m"] = {"median": round(float(np.median(e)), 4),
                           "p95": round(float(np.quantile(e, 0.95)), 4),
                           "max": round(float(e.max()), 4)}
+        fe = np.asarray(floor_errs)
+        out["floor_err_m"] = {"median": round(float(np.median(fe)), 4),
+                              "p95": round(float(np.quantile(fe, 0.95)), 4),
+                              "max": round(float(fe.max()), 4)}
         out["d_true_m"] = {"median": round(float(np.median(d_true)), 3),
                            "min": round(float(np.min(d_true)), 3),
                            "max": round(float(np.max(d_true)), 3)}
@@ -322,6 +344,7 @@ def robot_loop(make: Callable[[], Any], variant: str = "report", n: int = 300) -
     pos: list[Any] = []
     in_picture = 0
     with open_source(spec) as src:
+        limits = src.rig.limits
         for rec in run_tracking(src, tracker):
             t = rec.frame.payload(RobotCameraTruth)
             if t is None:
@@ -346,4 +369,9 @@ def robot_loop(make: Callable[[], Any], variant: str = "report", n: int = 300) -
             "jerk_m_s3": {"rms": round(float(np.sqrt(np.mean(jerk ** 2))), 3),
                           "p95": round(float(np.quantile(jerk, 0.95)), 3)},
             "max_accel_m_s2": round(float(np.max(np.linalg.norm(acc, axis=1))), 3),
+            # the arm's limits hold per Cartesian axis (engine.studio.robot.RobotLimits)
+            "max_axis_accel_m_s2": round(float(np.max(np.abs(acc))), 3),
+            "max_axis_speed_m_s": round(float(np.max(np.abs(np.diff(P, axis=0)))) / dt, 3),
+            "limits": {"max_speed_m_s": limits.max_speed_m_s,
+                       "max_accel_m_s2": limits.max_accel_m_s2},
             "travel_m": round(float(np.sum(np.linalg.norm(np.diff(P, axis=0), axis=1))), 3)}

@@ -250,26 +250,6 @@ def model_from_parts(image_bgr: NDArray[np.uint8], box_xywh: Sequence[float],
                        allow_grey=True, grey_world=grey_world)
 
 
-def core_boxes_from_labels(labels: NDArray[np.integer], codes: dict[str, int],
-                           lo_pct: float = 15.0, hi_pct: float = 85.0,
-                           min_pixels: int = 20) -> dict[str, XYWH]:
-    """Per-part patches the way an operator drags them: over the part's core, not its extent.
-
-    The box spans the ``lo_pct``..``hi_pct`` percentiles of the part's pixel columns and rows,
-    so swinging arms or a stride do not pull background into the patch.
-    """
-    out: dict[str, XYWH] = {}
-    for name, code in codes.items():
-        ys, xs = np.nonzero(labels == code)
-        if len(xs) < min_pixels:
-            continue
-        x0, x1 = np.percentile(xs, [lo_pct, hi_pct])
-        y0, y1 = np.percentile(ys, [lo_pct, hi_pct])
-        if x1 - x0 >= MIN_SIDE_PX and y1 - y0 >= MIN_SIDE_PX:
-            out[name] = (float(x0), float(y0), float(x1 - x0 + 1), float(y1 - y0 + 1))
-    return out
-
-
 # --------------------------------------------------------------------------- persistence
 
 

@@ -610,3 +610,24 @@ def _pack_materials(scene: StudioScene) -> tuple[NDArray[np.int64], F64, NDArray
     a = scene.atlas_bgr.astype(np.uint32)
     atlas = np.ascontiguousarray(a[:, 0] | (a[:, 1] << 8) | (a[:, 2] << 16))
     return mat_i, mat_f, atlas
+
+
+def core_boxes_from_labels(labels: NDArray[np.integer], codes: dict[str, int],
+                           lo_pct: float = 15.0, hi_pct: float = 85.0,
+                           min_pixels: int = 20, min_side_px: float = 2.0
+                           ) -> dict[str, tuple[float, float, float, float]]:
+    """Per-part patches the way an operator drags them: over the part's core, not its extent.
+
+    The box spans the ``lo_pct``..``hi_pct`` percentiles of the part's pixel columns and rows,
+    so swinging arms or a stride do not pull background into the patch.
+    """
+    out: dict[str, tuple[float, float, float, float]] = {}
+    for name, code in codes.items():
+        ys, xs = np.nonzero(labels == code)
+        if len(xs) < min_pixels:
+            continue
+        x0, x1 = np.percentile(xs, [lo_pct, hi_pct])
+        y0, y1 = np.percentile(ys, [lo_pct, hi_pct])
+        if x1 - x0 >= min_side_px and y1 - y0 >= min_side_px:
+            out[name] = (float(x0), float(y0), float(x1 - x0 + 1), float(y1 - y0 + 1))
+    return out

@@ -41,7 +41,7 @@ from engine.studio.ball import BallPath
 from engine.studio.lighting import LIGHTINGS, apply_gain
 from engine.studio.paths import CameraPath
 from engine.studio.presenter import PresenterScript, body_prims, concat_prims
-from engine.studio.render import Prims, Renderer, label_boxes
+from engine.studio.render import Prims, Renderer, core_boxes_from_labels, label_boxes
 from engine.studio.scene import (
     BOX,
     LABEL_BALL,
@@ -209,7 +209,15 @@ class Studio:
         if int(sel[:, 4].sum()) >= max(1, round(1e-3 * cfg.width * cfg.height)):
             vis = sel[sel[:, 4] > 0]
             box = _xywh(vis[:, 0].min(), vis[:, 1].min(), vis[:, 2].max(), vis[:, 3].max())
-        return OverheadView(color_bgr=color, box_xywh=box,
+        parts: tuple[tuple[str, tuple[float, float, float, float]], ...] = ()
+        if box is not None and index == 0:
+            # the operator's patches of the second view's model (first frame only: the
+            # tracker initialises from it)
+            cores = core_boxes_from_labels(
+                out.labels, {"head": LABEL_HEAD, "torso": LABEL_TORSO, "legs": LABEL_LEGS})
+            parts = tuple((k, (float(b[0]), float(b[1]), float(b[2]), float(b[3])))
+                          for k, b in cores.items())
+        return OverheadView(color_bgr=color, box_xywh=box, part_boxes=parts,
                             floor_calibration=self.floor_calibration,
                             timestamp_s=index / cfg.fps,
                             floor_xy_m_true=None if feet is None

@@ -136,12 +136,12 @@ class PresenterTracker:
 
     def _init(self, frame: Frame, bgr: np.ndarray) -> bool:
         from engine.presenter.model import (
-            core_boxes_from_labels,
             load_model,
             model_from_box,
             model_from_parts,
         )
         from engine.presenter.view import ViewTracker
+        from engine.studio.render import core_boxes_from_labels
 
         p = self._params
         model = self.model
@@ -175,8 +175,13 @@ class PresenterTracker:
         self._view = ViewTracker(model, p, fps)
         over = frame.payload(OverheadView)
         if over is not None and over.box_xywh is not None:
-            omodel = model_from_box(over.color_bgr, over.box_xywh, p.auto_patches, p.n_bins,
-                                    grey_world=p.grey_world)
+            oparts = dict(over.part_boxes)
+            if p.use_part_boxes and len(oparts) >= 2:
+                omodel = model_from_parts(over.color_bgr, over.box_xywh, oparts, p.n_bins,
+                                          grey_world=p.grey_world)
+            else:
+                omodel = model_from_box(over.color_bgr, over.box_xywh, p.auto_patches,
+                                        p.n_bins, grey_world=p.grey_world)
             self._overhead = ViewTracker(omodel, p, fps)
         return True
 

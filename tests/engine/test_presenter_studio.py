@@ -101,6 +101,32 @@ def test_the_tracker_measures_d_from_the_second_view() -> None:
     assert float(np.median(errs)) < 0.1
 
 
+def test_second_view_model_comes_from_its_own_patches_and_follows_the_walk() -> None:
+    """The second view's first frame carries the presenter's patches (the studio's labels
+    standing in for the operator's); with a model split from the box instead, the second
+    filter settled on the blue desk behind the blue shirt and the floor position was 2 m off
+    while d (nearly constant across the set) still looked right."""
+    src = open_source("synthetic:frames=70,width=320,height=240,presenter=1,path=static,"
+                      "views=2,seed=3")
+    frames = list(src.frames())
+    first = frames[0].payload(OverheadView)
+    assert first is not None
+    assert {name for name, _ in first.part_boxes} == {"head", "torso", "legs"}
+    assert frames[1].payload(OverheadView).part_boxes == ()  # only the first frame's
+    tracker = create_tracker("presenter")
+    errs = []
+    for f in frames:
+        d = tracker.track(f).details
+        over = f.payload(OverheadView)
+        if d.floor_xy_m is not None:
+            errs.append(np.hypot(d.floor_xy_m[0] - over.floor_xy_m_true[0],
+                                 d.floor_xy_m[1] - over.floor_xy_m_true[1]))
+    # measured: 67 frames, median 0.063 m; with the box split 50 frames (the rest LOST),
+    # median 0.22 m
+    assert len(errs) >= 60
+    assert float(np.median(errs)) < 0.12
+
+
 def test_robot_rig_obeys_its_speed_and_acceleration_limits() -> None:
     rig = RobotRig(make_T(np.eye(3), (0.0, 0.0, 1.5)),
                    RobotLimits(max_speed_m_s=1.0, max_accel_m_s2=2.0))
