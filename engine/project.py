@@ -10,7 +10,9 @@ annotate, bundle-adjust). Layout::
     rev-0003/           the current revision, written completely before project.json
         camera.json         calibration (engine.camera format), optional
         floor.json          floor calibration of the presenter's second (overhead) view
-                            (engine.floor format), optional
+                            (engine.floor format), optional; one made with the project's
+                            lens file (``lens_from_project``) takes lens.json's samples
+                            when the project opens
         keyframes/          keyframe store (engine.keyframes.store format), optional
         annotations.json    annotated points: observations per keyframe, 3D point
         presenter.json      presenter models slot (JSON objects by name)
@@ -307,6 +309,12 @@ def open_project(folder: str | Path) -> Project:
     if not isinstance(params, dict) or not isinstance(params.get("groups"), dict):
         raise ProjectError(f"{data / 'params.json'}: expected {{'groups': {{...}}}}")
     lens, studio_frame, nodal, ptz = _read_setup(data)
+    if floor is not None and floor.lens_from_project and lens is not None and lens.complete:
+        # a floor camera model on the project's lens file follows the file's current samples
+        try:
+            floor = floor.with_lens(lens)
+        except CalibrationError as exc:
+            raise ProjectError(f"{data / 'floor.json'}: {exc}") from None
     return Project(
         name=str(index.get("name", folder.name)),
         intrinsics=intr if intr is not None else (store.intrinsics if store is not None else None),

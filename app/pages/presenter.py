@@ -10,7 +10,10 @@ Two views (paper Fig. 2): a source with a second camera (``synthetic:views=2``, 
 shows its picture beside the frontal one; the Floor tab takes its frame, four floor marks are
 clicked on it and their floor coordinates (m) typed in, with the robot's floor position; the
 calibration is saved in the studio project and given to the tracker, which then reports the
-presenter's floor position, height and distance d, and sends the talent output.
+presenter's floor position, height and distance d, and sends the talent output. A second
+camera that zooms takes the lens file (the project's, or the source's own) and the zoom /
+focus encoders at the marks: the calibration is then a camera model (engine.floor) that
+follows the encoders the camera reports each frame.
 
 Live: Start runs ``presenter`` through the window's run owner (``ctx.run``: the outputs,
 the robot-camera control sink and the status header follow it; a run of another page must be
@@ -36,6 +39,7 @@ from PySide6.QtGui import QColor, QPainter
 from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
+    QComboBox,
     QDoubleSpinBox,
     QFrame,
     QGridLayout,
@@ -48,6 +52,7 @@ from PySide6.QtWidgets import (
     QPushButton,
     QRadioButton,
     QScrollArea,
+    QSpinBox,
     QSplitter,
     QTableWidget,
     QTableWidgetItem,
@@ -429,7 +434,8 @@ class PresenterPage(Page):
 
         over = frame.payload(OverheadView)
         if over is not None and self.over_reference is None:
-            self.set_overhead(np.array(over.color_bgr), over.floor_calibration)
+            self.set_overhead(np.array(over.color_bgr), over.floor_calibration,
+                              over.lens_encoders)
 
     def set_reference(self, image_bgr: np.ndarray) -> None:
         self.reference = image_bgr
@@ -599,6 +605,29 @@ class PresenterPage(Page):
         grid.addWidget(self.robot_y, 1, 1)
         grid.addWidget(QLabel("focal length"), 2, 0)
         grid.addWidget(self.focal, 2, 1)
+        self.floor_lens = QComboBox()
+        for text, key in (("none: fixed homography", "none"),
+                          ("the project's lens file", "project"),
+                          ("the source's lens file", "source")):
+            self.floor_lens.addItem(text, key)
+        self.floor_lens.setToolTip(
+            "A camera that zooms: K and distortion from a lens file at its zoom/focus "
+            "encoders, the pose from the four marks (PnP), so that zooming keeps d; 'none' "
+            "keeps a fixed homography (right only at the zoom the marks were clicked at)")
+        self.floor_zoom = QSpinBox()
+        self.floor_focus = QSpinBox()
+        for box in (self.floor_zoom, self.floor_focus):
+            box.setRange(0, 2**31 - 1)
+            box.setToolTip("the overhead camera's encoder counts when the marks were taken "
+                           "(filled from the taken frame where the camera reports them)")
+        grid.addWidget(QLabel("lens"), 3, 0)
+        grid.addWidget(self.floor_lens, 3, 1)
+        grid.addWidget(QLabel("zoom / focus at the marks"), 4, 0)
+        enc_row = QHBoxLayout()
+        enc_row.addWidget(self.floor_zoom)
+        enc_row.addWidget(self.floor_focus)
+        grid.addLayout(enc_row, 4, 1)
+        self._source_lens: Any = None  # the taken frame's calibration's lens, if any
         fv.addLayout(grid)
         self.floor_save_button = QPushButton("Calibrate and save to project")
         self.floor_save_button.setToolTip("Compute the floor homography and keep it in the "
@@ -636,11 +665,18 @@ class PresenterPage(Page):
             self._say("this source has no second view (try synthetic:...,views=2 or "
                       "twoview:front=...,over=...)", "warning")
             return
-        self.set_overhead(np.array(over.color_bgr), over.floor_calibration)
+        self.set_overhead(np.array(over.color_bgr), over.floor_calibration,
+                          over.lens_encoders)
 
-    def set_overhead(self, image_bgr: np.ndarray, calib: Any = None) -> None:
+    def set_overhead(self, image_bgr: np.ndarray, calib: Any = None,
+                     encoders: Any = None) -> None:
         self.over_reference = image_bgr
         self.over_canvas.set_image(image_bgr)
+        if encoders is not None:  # the camera reports its lens encoders at this frame
+            self.floor_zoom.setValue(int(encoders.zoom_raw))
+            self.floor_focus.setValue(int(encoders.focus_raw))
+        if calib is not None and getattr(calib, "lens", None) is not None:
+            self._source_lens = calib.lens
         if calib is not None and len(calib.image_points_px) == 4 and self.floor_calib is None:
             # the source knows its calibration (built-in studio): show it as the marks
             self._fill_floor(calib)
@@ -656,6 +692,11 @@ class PresenterPage(Page):
         self.robot_x.setValue(calib.robot_floor_xy_m[0])
         self.robot_y.setValue(calib.robot_floor_xy_m[1])
         self.focal.setValue(calib.f_px or 0.0)
+        if getattr(calib, "has_lens_model", False):
+            self.floor_lens.setCurrentIndex(self.floor_lens.findData(
+                "project" if calib.lens_from_project else "source"))
+            self.floor_zoom.setValue(int(calib.encoders_raw[0]))
+            self.floor_focus.setValue(int(calib.encoders_raw[1]))
 
     @Slot()
     def clear_floor_points(self) -> None:
@@ -704,23 +745,46 @@ class PresenterPage(Page):
         wh = None
         if self.over_reference is not None:
             wh = (self.over_reference.shape[1], self.over_reference.shape[0])
+        choice = self.floor_lens.currentData()
+        lens = None
+        if choice == "project":
+            lens = getattr(getattr(self.ctx, "project", None), "lens", None)
+            if lens is None or not lens.complete:
+                self._say("floor calibration: the project has no complete lens file (Lens "
+                          "page), choose 'none' or the source's", "error")
+                return None
+        elif choice == "source":
+            lens = self._source_lens
+            if lens is None:
+                self._say("floor calibration: the source's second view has no lens file "
+                          "(try synthetic:...,views=2,over_zoom=sweep), choose 'none'",
+                          "error")
+                return None
         try:
             calib = calibrate_floor(img, flo, (self.robot_x.value(), self.robot_y.value()), wh,
-                                    self.focal.value() or None)
+                                    self.focal.value() or None, lens=lens,
+                                    encoders_raw=(self.floor_zoom.value(),
+                                                  self.floor_focus.value()),
+                                    lens_from_project=choice == "project")
         except CalibrationError as exc:
             self._say(str(exc), "error")
             return None
         self.floor_calib = calib
-        P = calib.camera()
-        if P is not None:
+        model = calib.camera_at()
+        if model is not None:
+            T = model[1]
+            C = -T[:3, :3].T @ T[:3, 3]
+            where = (f"camera at ({C[0]:.2f}, {C[1]:.2f}) m, {C[2]:.2f} m above the floor "
+                     f"(lens model, marks reprojected to {calib.pnp_rms_px:.2f} px at zoom "
+                     f"{calib.encoders_raw[0]}, focus {calib.encoders_raw[1]})")
+        elif (P := calib.camera()) is not None:
             C = -np.linalg.solve(P[:, :3], P[:, 3])
             where = f"camera at ({C[0]:.2f}, {C[1]:.2f}) m, {C[2]:.2f} m above the floor"
         else:
             where = "camera not recovered (floor positions from the feet only)"
-        project = getattr(self.ctx, "project", None)
-        if project is not None and hasattr(project, "floor_calibration"):
-            project.floor_calibration = calib
-            project.mark_dirty()
+        edit = getattr(self.ctx, "edit_project", None)
+        if edit is not None:
+            edit(lambda proj: setattr(proj, "floor_calibration", calib))
             saved = "kept in the project (File > Save writes it)"
         else:
             saved = "kept for this session (open or create a project to save it)"

@@ -291,6 +291,7 @@ def _two_view(args: argparse.Namespace) -> dict[str, Any]:
         return [t.track(f) for f in frames]
     out = sc.two_view(run, "report")
     out["rail"] = sc.two_view(run, "rail")
+    out["zoom"] = sc.two_view(run, "zoom")
     return out
 
 

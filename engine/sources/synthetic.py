@@ -57,6 +57,9 @@ zoom                   sweep: a 3x zoom lens swept wide -> tele -> wide (``engin
                        a known lens file, frames carry the zoom/focus encoders); N: held at
                        encoder value N (0..65535)
 zoom_cycle_s           seconds of one sweep cycle (default: the whole shot)
+over_zoom              views=2: the second camera gets the same zoom lens (its floor
+                       calibration a camera model from the lens file, marks taken at the wide
+                       end); sweep: wide -> about 1.3x -> wide over the shot; N: held at N
 =====================  ==========================================================================
 """
 
@@ -194,6 +197,7 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "ahead": _int(0, 8),
     "zoom": _zoom,
     "zoom_cycle_s": _float(0.0, open_lo=True),
+    "over_zoom": _zoom,
 }
 
 
@@ -292,6 +296,17 @@ def config_from_options(opts: dict[str, str]) -> Any:
         cycle = max(2, round(o.get("zoom_cycle_s", frames / fps) * fps))
         zoom = (ZoomScript("sweep", cycle_frames=cycle) if z == "sweep"
                 else ZoomScript("fixed", value_raw=int(z)))
+    over_zoom = None
+    if "over_zoom" in o:
+        from engine.studio.views import OVER_ZOOM_SWEEP_MAX_RAW
+        from engine.studio.zoom import ZoomScript
+
+        if o.get("views", 1) != 2:
+            raise SourceError("synthetic: option over_zoom needs views=2")
+        z = o["over_zoom"]
+        over_zoom = (ZoomScript("sweep", cycle_frames=max(2, frames),
+                                sweep_max_raw=OVER_ZOOM_SWEEP_MAX_RAW) if z == "sweep"
+                     else ZoomScript("fixed", value_raw=int(z)))
     if zoom is not None and o.get("distortion", False):
         raise SourceError("synthetic: zoom has its own lens distortion; drop distortion=1")
     return StudioConfig(
@@ -317,6 +332,7 @@ def config_from_options(opts: dict[str, str]) -> Any:
         lighting=o.get("lighting", "default"),
         views=o.get("views", 1),
         zoom=zoom,
+        over_zoom=over_zoom,
     )
 
 

@@ -146,12 +146,16 @@ class StudioConfig:
     lighting: str = "default"  # a variant of ``engine.studio.lighting.LIGHTINGS``
     views: int = 1  # 2: also the overhead camera (engine.studio.views), an OverheadView payload
     zoom: ZoomScript | None = None  # a zoom lens (engine.studio.zoom): None = the fixed lens
+    #: the second camera's zoom (views=2; engine.studio.views): None = its fixed wide lens
+    over_zoom: ZoomScript | None = None
 
     def __post_init__(self) -> None:
         if self.lighting not in LIGHTINGS:
             raise ValueError(f"lighting {self.lighting!r} is not one of {', '.join(LIGHTINGS)}")
         if self.views not in (1, 2):
             raise ValueError(f"views must be 1 or 2, got {self.views}")
+        if self.over_zoom is not None and self.views != 2:
+            raise ValueError("over_zoom needs views=2 (it zooms the second camera)")
 
 
 class Studio:
@@ -162,6 +166,7 @@ class Studio:
         self.scene = build_scene(config.seed)
         self.intrinsics = studio_intrinsics(config.width, config.height, config.distortion)
         self._zoom_renderers: dict[int, tuple[Intrinsics, Renderer]] = {}
+        self._over_renderers: dict[int, tuple[F64, Renderer]] = {}
         if config.zoom is not None:
             self.intrinsics = studio_zoom_lens(config.width, config.height).intrinsics_at(
                 config.zoom.encoders(0).zoom_raw)
@@ -187,15 +192,36 @@ class Studio:
         """The overhead camera's exact floor calibration (``views=2``)."""
         from engine.studio.views import OVERHEAD
 
-        return OVERHEAD.floor_calibration(self.config.width, self.config.height)
+        return OVERHEAD.floor_calibration(self.config.width, self.config.height,
+                                          zoom=self.config.over_zoom is not None)
+
+    def _second_camera(self, index: int) -> tuple[F64, Renderer, Any]:
+        """Pose, renderer and lens encoders of the second camera at frame ``index`` (zoom:
+        renderers kept for recent encoder values)."""
+        from engine.studio.views import OVERHEAD
+
+        cfg = self.config
+        if cfg.over_zoom is None:
+            return OVERHEAD.T_world_cam(), self.renderer2, None
+        enc = cfg.over_zoom.encoders(index)
+        cached = self._over_renderers.get(enc.zoom_raw)
+        if cached is None:
+            cam, T = OVERHEAD.zoom_camera(cfg.width, cfg.height, enc.zoom_raw, enc.focus_raw)
+            light = LIGHTINGS[cfg.lighting]
+            cached = (T, Renderer(self.scene, cam, cfg.threads,
+                                  None if light.name == "default" else light.dynamic_light()))
+            if len(self._over_renderers) >= 4:
+                self._over_renderers.pop(next(iter(self._over_renderers)))
+            self._over_renderers[enc.zoom_raw] = cached
+        return cached[0], cached[1], enc
 
     def _second_view(self, index: int, prims: Prims | None, feet: F64 | None) -> Any:
         """The overhead camera's frame of the same instant, as an ``OverheadView`` payload."""
         from engine.floor import OverheadView
-        from engine.studio.views import OVERHEAD
 
         cfg = self.config
-        out = self.renderer2.render(OVERHEAD.T_world_cam(), prims)
+        T_over, renderer2, enc = self._second_camera(index)
+        out = renderer2.render(T_over, prims)
         color = out.color_bgr
         light = LIGHTINGS[cfg.lighting]
         if not light.is_identity:
@@ -219,7 +245,7 @@ class Studio:
                           for k, b in cores.items())
         return OverheadView(color_bgr=color, box_xywh=box, part_boxes=parts,
                             floor_calibration=self.floor_calibration,
-                            timestamp_s=index / cfg.fps,
+                            timestamp_s=index / cfg.fps, lens_encoders=enc,
                             floor_xy_m_true=None if feet is None
                             else (float(feet[0]), float(feet[1])))
 

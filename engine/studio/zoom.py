@@ -61,12 +61,15 @@ class ZoomScript:
     mode: str = "sweep"
     value_raw: int = 0  # fixed mode
     cycle_frames: int = 300  # sweep: frames of one wide -> tele -> wide cycle
+    sweep_max_raw: int = ZOOM_MAX_RAW  # sweep: the encoder value at the tele end
 
     def __post_init__(self) -> None:
         if self.mode not in ZOOM_MODES:
             raise ValueError(f"zoom mode {self.mode!r}: expected one of {', '.join(ZOOM_MODES)}")
         if not 0 <= self.value_raw <= ZOOM_MAX_RAW:
             raise ValueError(f"zoom value {self.value_raw} is outside 0..{ZOOM_MAX_RAW}")
+        if not 0 < self.sweep_max_raw <= ZOOM_MAX_RAW:
+            raise ValueError(f"zoom sweep end {self.sweep_max_raw} is outside 1..{ZOOM_MAX_RAW}")
         if self.cycle_frames < 2:
             raise ValueError("zoom sweep needs at least 2 frames per cycle")
 
@@ -74,6 +77,6 @@ class ZoomScript:
         if self.mode == "fixed":
             z = self.value_raw
         else:
-            z = round(ZOOM_MAX_RAW * 0.5 * (1.0 - math.cos(2 * math.pi * index
-                                                            / self.cycle_frames)))
+            z = round(self.sweep_max_raw * 0.5 * (1.0 - math.cos(2 * math.pi * index
+                                                                  / self.cycle_frames)))
         return LensEncoders(zoom_raw=int(z), focus_raw=FOCUS_RAW)

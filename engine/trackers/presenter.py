@@ -237,7 +237,8 @@ class PresenterTracker:
             obox = (ox - ow / 2.0, oy - oh / 2.0, ow, oh)
             calib = self._floor_calibration(over)
             if calib is not None and over_out.state == "TRACKING":
-                fx_m, fy_m, height = calib.locate(obox)
+                # a lens-model calibration: K and distortion at the view's encoders now
+                fx_m, fy_m, height = calib.locate(obox, over.lens_encoders)
                 floor_xy = (fx_m, fy_m)
                 rx, ry = calib.robot_floor_xy_m
                 d_m = float(np.hypot(fx_m - rx, fy_m - ry))

@@ -166,6 +166,36 @@ def test_two_views_floor_calibration_and_distance(qtbot, ctx) -> None:  # type: 
     assert page.over_canvas.overlay_boxes == []
 
 
+def test_floor_calibration_of_a_zooming_second_view_uses_a_lens_file(qtbot, ctx) -> None:  # type: ignore[no-untyped-def]
+    from app.pages.presenter import PresenterPage
+
+    page = PresenterPage(ctx)
+    qtbot.addWidget(page)
+    page.source_edit.setText(TWO_VIEW.replace("frames=60", "frames=4") + ",over_zoom=sweep")
+    page.take_reference()
+    # the studio's second camera zooms: its marks come with its lens file and encoders
+    assert page.floor_lens.currentData() == "source"
+    assert page.floor_focus.value() == 30000
+    calib = page.save_floor_calibration()
+    assert calib is not None
+    assert calib.has_lens_model
+    assert not calib.lens_from_project
+    assert "lens model" in page.floor_status.text()
+    # no project open before: the page made one (one way to change the project)
+    assert ctx.project is not None
+    assert ctx.project.floor_calibration is calib
+    # the project's lens file is asked for but there is none: one line, nothing changed
+    page.floor_lens.setCurrentIndex(page.floor_lens.findData("project"))
+    assert page.save_floor_calibration() is None
+    assert "no complete lens file" in page.message.text()
+    assert ctx.project.floor_calibration is calib
+    ctx.edit_project(lambda p: setattr(p, "lens", calib.lens))
+    got = page.save_floor_calibration()
+    assert got is not None
+    assert got.lens_from_project
+    assert got.has_lens_model
+
+
 # played in real time (30 fps): ~5 s in view, then ~8 s with the lens covered, so that the
 # display ticks see both states however loaded the machine is
 COVERED = ("synthetic:frames=400,width=160,height=120,seed=3,presenter=1,path=static,"

@@ -100,3 +100,89 @@ def test_malformed_floor_documents_are_rejected() -> None:
         floor_calibration_from_json({"format": "studiotrack.floor_homography", "version": 9})
     with pytest.raises(CalibrationError, match="missing"):
         floor_calibration_from_json({"format": "studiotrack.floor_homography", "version": 1})
+
+
+# -------------------------------------------------------------- lens camera model (issue 13)
+
+
+def _zoom_view_box(zoom_raw: int, X: float, Y: float, height: float) -> tuple[float, ...]:
+    """The box of a standing person (segment at (X, Y) moved towards the camera by the
+    half body depth) in the studio's second camera through its zoom lens at ``zoom_raw``."""
+    from engine.studio.views import OVERHEAD
+    from engine.studio.zoom import FOCUS_RAW
+
+    cam, T = OVERHEAD.zoom_camera(640, 480, zoom_raw, FOCUS_RAW)
+    C = T[:3, 3]
+    toward = (np.array([X, Y]) - C[:2]) / np.linalg.norm(np.array([X, Y]) - C[:2])
+    xs, ys = np.array([X, Y]) - BODY_HALF_DEPTH_M * toward
+    foot, head = _uv(cam, T, np.array([[xs, ys, 0.0], [xs, ys, height]]))
+    u = 0.5 * (foot[0] + head[0])  # an upright box in the distorted picture
+    return (u - 20.0, head[1], 40.0, foot[1] - head[1])
+
+
+def test_a_zooming_view_keeps_the_floor_position_with_the_lens_model() -> None:
+    from engine.lens import LensEncoders
+    from engine.studio.views import OVERHEAD
+    from engine.studio.zoom import FOCUS_RAW
+
+    calib = OVERHEAD.floor_calibration(640, 480, zoom=True)  # marks taken at the wide end
+    assert calib.has_lens_model
+    assert calib.encoders_raw == (0, FOCUS_RAW)
+    assert calib.pnp_rms_px is not None
+    assert calib.pnp_rms_px < 1e-3
+    fixed = calib.without_lens()
+    assert not fixed.has_lens_model
+    X, Y, height = 0.3, 2.5, 1.75
+    for zoom in (0, 8192, 16384):
+        _, T = OVERHEAD.zoom_camera(640, 480, zoom, FOCUS_RAW)
+        _cam, T_est = calib.camera_at(LensEncoders(zoom, FOCUS_RAW))
+        # the pose follows the entrance pupil: T_cam_floor = T_world_cam^-1 (floor = world)
+        np.testing.assert_allclose(T_est, invert(T), atol=1e-6)
+        box = _zoom_view_box(zoom, X, Y, height)
+        x, y, h = calib.locate(box, LensEncoders(zoom, FOCUS_RAW))
+        # the box's bottom centre is not exactly the foot's image under distortion (the box
+        # is upright in the distorted picture): centimetres, not decimetres
+        assert np.hypot(x - X, y - Y) < 0.03, zoom
+        assert h == pytest.approx(height, abs=0.05)
+        hx, hy, _ = fixed.locate(box)
+        if zoom == 16384:
+            assert np.hypot(hx - X, hy - Y) > 0.3  # the fixed homography breaks
+
+
+def test_lens_floor_calibration_round_trips_and_follows_the_project_lens(
+        tmp_path: Path) -> None:
+    from engine.studio.views import OVERHEAD
+
+    calib = OVERHEAD.floor_calibration(640, 480, zoom=True)
+    save_floor_calibration(tmp_path / "floor.json", calib)
+    back = load_floor_calibration(tmp_path / "floor.json")
+    assert back.has_lens_model
+    assert back.encoders_raw == calib.encoders_raw
+    np.testing.assert_allclose(back.T_cam_floor, calib.T_cam_floor, atol=1e-9)
+    import json
+
+    assert json.loads((tmp_path / "floor.json").read_text())["version"] == 2
+    # made with the project's lens: a project whose lens file changes re-solves the pose
+    proj = new_project("show")
+    proj.lens = calib.lens
+    proj.floor_calibration = calib.with_lens(calib.lens, from_project=True)
+    proj.save(tmp_path / "proj")
+    got = open_project(tmp_path / "proj").floor_calibration
+    assert got is not None
+    assert got.lens_from_project
+    assert got.has_lens_model
+    np.testing.assert_allclose(got.T_cam_floor, calib.T_cam_floor, atol=1e-9)
+
+
+def test_lens_floor_calibration_errors_are_one_line() -> None:
+    from engine.studio.views import OVERHEAD
+    from engine.studio.zoom import studio_zoom_lens
+
+    calib = OVERHEAD.floor_calibration(640, 480, zoom=True)
+    with pytest.raises(CalibrationError, match=r"lens file .* is for 320x240 images, the view "
+                                               r"is 640x480"):
+        calibrate_floor(calib.image_points_px, calib.floor_points_m, (0.0, 0.0), (640, 480),
+                        lens=studio_zoom_lens(320, 240))
+    with pytest.raises(CalibrationError, match="encoders must be 2 integers"):
+        calibrate_floor(calib.image_points_px, calib.floor_points_m, lens=calib.lens,
+                        encoders_raw=("wide",))
