@@ -158,9 +158,14 @@ class TwoViewSource(Source):
         box = self.over_box if first and self.over_box is not None else (
             f.gt_box_xywh if first else None)
         assert f.color_bgr is not None
+        from engine.lens import LensEncoders
+
+        # a zooming overhead camera that reports its encoders (a lens-model floor
+        # calibration follows them)
         return OverheadView(color_bgr=f.color_bgr, box_xywh=box,
                             floor_calibration=self.floor,
-                            timestamp_s=f.timestamp_s + self.over_offset_s)
+                            timestamp_s=f.timestamp_s + self.over_offset_s,
+                            lens_encoders=f.payload(LensEncoders))
 
     def frames(self) -> Iterator[Frame]:
         live = self.front.live and self.over.live
