@@ -433,9 +433,15 @@ class PresenterPage(Page):
         from engine.floor import OverheadView
 
         over = frame.payload(OverheadView)
-        if over is not None and self.over_reference is None:
+        if over is not None:
             self.set_overhead(np.array(over.color_bgr), over.floor_calibration,
                               over.lens_encoders)
+        elif self.over_reference is not None:
+            # this source has no second view: another source's picture is not left standing
+            self.over_reference = None
+            self._source_lens = None
+            self.over_canvas.set_image(None)
+            self.over_canvas.set_floor_points([])
 
     def set_reference(self, image_bgr: np.ndarray) -> None:
         self.reference = image_bgr
@@ -905,6 +911,11 @@ class PresenterPage(Page):
         self.canvas.show_model = True
         self.canvas.set_live([], None, None, None, None)
         self.over_canvas.set_live([], None, None, None, None)
+        # the model is drawn on its own reference again, not on the run's last frame
+        if self.reference is not None:
+            self.canvas.set_image(self.reference)
+        if self.over_reference is not None:
+            self.over_canvas.set_image(self.over_reference)
         self.light.set_state(None, "STOPPED")
         self.readout.setText("Not tracking.")
         self.control_label.setText("Robot-camera control: shown while tracking.")
@@ -1028,7 +1039,7 @@ class PresenterPage(Page):
             thr = self.form.params.loss_contrast
             self.zmax_curve.setData([t[0], t[-1]], [thr, thr])
             # short: a long title widens the plot beyond its slot
-            self.z_plot.setTitle(f"Loss test z, LOST > {thr:.2f}")
+            self.z_plot.setTitle(f"Loss z, LOST > {thr:.2f}")
             self.d_plot.setTitle("Floor distance d" if ok.any() else "d: no second view")
 
 
@@ -1061,7 +1072,7 @@ class PresenterPage(Page):
         self.over_canvas.set_image(over.color_bgr)
         boxes = []
         if ex is not None and ex.overhead_box_xywh is not None:
-            label = f"presenter (overhead, {ex.overhead_state})"
+            label = f"presenter {ex.overhead_state}"  # short: the picture is narrow
             boxes.append((ex.overhead_box_xywh, label))
         self.over_canvas.set_live(boxes, None, None, None, None)
 

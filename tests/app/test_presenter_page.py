@@ -194,6 +194,12 @@ def test_floor_calibration_of_a_zooming_second_view_uses_a_lens_file(qtbot, ctx)
     assert got is not None
     assert got.lens_from_project
     assert got.has_lens_model
+    # a source without a second view: the other source's overhead picture does not stay
+    page.source_edit.setText(SOURCE)
+    page.take_reference()
+    assert page.over_reference is None
+    assert page.over_canvas._qimage is None
+    assert page.over_canvas.floor_points == []
 
 
 # played in real time (30 fps): ~5 s in view, then ~8 s with the lens covered, so that the

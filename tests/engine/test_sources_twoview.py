@@ -63,3 +63,35 @@ def test_a_nested_spec_and_errors(tmp_path: Path) -> None:
     with pytest.raises(SourceError, match="floor"):
         open_source(f"twoview:front=synthetic,over={tmp_path / 'over'},"
                     f"floor={tmp_path / 'none.json'}")
+
+
+def test_a_real_rig_recording_gives_the_floor_distance_end_to_end(tmp_path: Path) -> None:
+    """Two recordings (the built-in studio's overhead frames written as a time-stamped image
+    folder, the frontal camera as a source) with a floor.json: the tracker measures d."""
+    from engine.floor import OverheadView as Over
+    from engine.trackers import create_tracker
+
+    spec = "frames=12;width=320;height=240;presenter=1;path=static;seed=3"
+    studio = list(open_source(f"synthetic:{spec.replace(';', ',')},views=2").frames())
+    (tmp_path / "over").mkdir()
+    truth = []
+    for f in studio:
+        o = f.payload(Over)
+        assert o is not None
+        cv2.imwrite(str(tmp_path / "over" / f"{f.timestamp_s + 0.004:.6f}.png"), o.color_bgr)
+        truth.append(o.floor_xy_m_true)
+    calib = studio[0].payload(Over).floor_calibration
+    save_floor_calibration(tmp_path / "floor.json", calib)
+    x, y, w, h = studio[0].payload(Over).box_xywh
+    src = open_source(f"twoview:front=synthetic:{spec},over={tmp_path / 'over'},"
+                      f"floor={tmp_path / 'floor.json'},over_box={x}:{y}:{w}:{h}")
+    tracker = create_tracker("presenter")
+    errs = []
+    rx, ry = calib.robot_floor_xy_m
+    for f, (tx, ty) in zip(src.frames(), truth, strict=True):
+        d = tracker.track(f).details
+        if d.d_m is not None:
+            errs.append(abs(d.d_m - float(np.hypot(tx - rx, ty - ry))))
+    assert src.pairs == 12
+    assert len(errs) >= 10
+    assert float(np.median(errs)) < 0.1
