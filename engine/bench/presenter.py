@@ -18,6 +18,13 @@ Side by side in one process, on the same preloaded frames (decoding is not timed
   re-acquire, false locks) and a normal walk (false LOST frames), for the default and the
   paper preset, with the studio's part boxes as the model and with the first box split;
 - distractor: a second person crossing in front, standing beside, walking behind;
+- two_view: the presenter's floor distance d and floor position from the second view against
+  the studio's truth (static camera, rail camera, and ``zoom``: the second camera zooming with
+  a lens-model floor calibration, the fixed homography's errors beside it as
+  ``homography_only``), and the frames LOST while the presenter is in both views (a loss in
+  either view is a loss);
+- robot: the closed loop with the virtual robot camera (framing error in the TV picture, jerk,
+  the arm's per-axis speed and acceleration against its limits);
 - jitter: presenter standing still: std of the jitter-filtered output (px), with the raw
   std beside it; lag of the filter at walking speed (closed form and measured).
 
