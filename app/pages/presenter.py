@@ -436,7 +436,7 @@ class PresenterPage(Page):
         if over is not None:
             self.set_overhead(np.array(over.color_bgr), over.floor_calibration,
                               over.lens_encoders)
-        elif self.over_reference is not None:
+        else:
             # this source has no second view: another source's picture is not left standing
             self.over_reference = None
             self._source_lens = None
