@@ -363,8 +363,8 @@ def _with_pnp(calib: FloorCalibration, img: F64, flo: F64, lens: Any,
     if not ok:
         raise CalibrationError("floor calibration: no camera pose fits the four marks "
                                "through the lens file")
-    R, _ = cv2.Rodrigues(rvec)
-    T = make_T(R, tvec.reshape(3))
+    R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
+    T = make_T(R, np.asarray(tvec, dtype=np.float64).reshape(3))
     if np.any((T[:3, :3] @ obj.T + T[:3, 3:4])[2] <= 0):
         raise CalibrationError("floor calibration: the PnP pose puts floor marks behind the "
                                "camera (check the marks' order and the lens file)")

@@ -362,7 +362,11 @@ def robot_loop(make: Callable[[], Any], variant: str = "report", n: int = 300) -
     errs: list[float] = []
     pos: list[Any] = []
     in_picture = 0
+    from engine.presenter.robot_sim import RobotSimSource
+
     with open_source(spec) as src:
+        if not isinstance(src, RobotSimSource):
+            raise TypeError(f"{spec}: not the robot-sim source")
         limits = src.rig.limits
         for rec in run_tracking(src, tracker):
             t = rec.frame.payload(RobotCameraTruth)
