@@ -65,7 +65,7 @@ class PresenterParams(Params):
                             "(mean-shift from eq. 6's mean, kernel half a box wide) instead of "
                             "eq. (6)'s mean of all: with a second person in view the mean lies "
                             "between the two")
-    ring_weight: float = param(0.5, lo=0.0, hi=10.0, step=0.1,
+    ring_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
                                help="scale term beyond eq. (3): the colour likelihood is also "
                                "multiplied by exp(-this x BC_ring / lambda_col), BC_ring = the "
                                "Bhattacharyya coefficient of a ring around the box with the "
@@ -91,7 +91,7 @@ class PresenterParams(Params):
                            "target-like tenth of this frame's background (z = 0 target, 1 "
                            "background); LOST while z > loss_contrast. 'likelihood' = the "
                            "paper's test, P(z_col|s) < loss_percent % of Pref")
-    loss_contrast: float = param(0.5, lo=0.05, hi=2.0, step=0.05,
+    loss_contrast: float = param(0.7, lo=0.05, hi=2.0, step=0.05,
                                  help="contrast loss test: LOST while z > this (0.5 = half-way "
                                  "from the target's colour match to the background's)")
     loss_bg_quantile: float = param(0.1, lo=0.01, hi=0.9, step=0.05,
@@ -108,7 +108,7 @@ class PresenterParams(Params):
                                      "min(1, o*/o_b)^this, o = colours of a ring around the "
                                      "first box (as bg_weighting): what the set around the "
                                      "presenter shows does not count as the presenter; 0 = off")
-    loss_motion: float = param(0.2, lo=0.0, hi=1.0, step=0.05,
+    loss_motion: float = param(0.1, lo=0.0, hi=1.0, step=0.05,
                                help="contrast loss test, motion cue (static camera): while "
                                "TRACKING, no LOST when the fraction of pixels under the "
                                "patches that moved in the last frames exceeds the most "
@@ -150,7 +150,7 @@ class PresenterParams(Params):
                                 "takes effect after a reset); 0 = off")
     reinit_particles: int = param(600, lo=10, hi=20000, step=50,
                                   help="particles of the diffuse prior while re-acquiring")
-    reacquire_frames: int = param(2, lo=1, hi=30, step=1,
+    reacquire_frames: int = param(1, lo=1, hi=30, step=1,
                                   help="consecutive frames above Pmin before the lock is declared")
     jitter_cutoff_hz: float = param(0.5, lo=0.0, hi=30.0, step=0.1,
                                     help="jitter low-pass cut-off (Hz); 0 = off. Lag behind a "
