@@ -19,6 +19,9 @@
   paper's method, ``preset=paper``) and ``paper_experiment_default.*`` (ours) on the circle of
   sec. 6.2 (turn rate 2 pi 0.0217 rad/s between the models, 140 s, 0.5 s sampling),
   ``paper_range*`` (7 m to 40 cm), ``paper_q_in_metres``, ``harder_*``; ``--plots DIR``.
+- ablation (:mod:`engine.bench.ptz_ablation`): each extension of
+  :data:`engine.trackers.ptz.EXTENSIONS` off at a time in our set and on at a time in the
+  paper's, on the paper experiment, the range run and the harder cases, same seeds.
 
 Each experiment is one function taking the parsed arguments and returning a dict; they run
 in :data:`EXPERIMENTS` order and their keys are flattened as ``experiment.key``.
@@ -54,6 +57,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--skip-chain", action="store_true", help="no calibrated chain")
     p.add_argument("--skip-paper", action="store_true",
                    help="skip the published experiment (paper_experiment.*, paper_range.*)")
+    p.add_argument("--skip-ablation", action="store_true",
+                   help="skip the ablation of the extensions (ablation.*)")
+    p.add_argument("--ablation-seeds", type=int, default=3,
+                   help="image-noise seeds of the ablation (3, 4, ...)")
     p.add_argument("--plots", type=Path, default=None, help="folder for PNG plots")
 
 
@@ -366,6 +373,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         groups, files = ptz_paper.run(args.plots)
         out.update(groups)
         out["plots"] = {"files": files}
+    if not args.skip_ablation:
+        from engine.bench import ptz_ablation
+
+        log(f"ablation: each extension off in the default set, on in the paper set, "
+            f"{args.ablation_seeds} seeds")
+        out["ablation"] = ptz_ablation.ablation(seeds=range(3, 3 + max(1, args.ablation_seeds)))
+        if args.plots is not None:
+            out.setdefault("plots", {"files": []})["files"].append(
+                ptz_ablation.plot(out["ablation"], Path(args.plots)))
     flat: dict[str, Any] = {}
     for group, vals in out.items():
         for k, v in vals.items():

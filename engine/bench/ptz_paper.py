@@ -44,19 +44,20 @@ STEADY_FROM_S = 20.0
 RANGE_BANDS_M = ((0.3, 1.0), (1.0, 3.0), (3.0, 5.0), (5.0, 7.5))
 
 
-def track(scenario: Any, params: Any, report: dict[str, Any] | None = None) -> dict[str, F64]:
+def track(scenario: Any, params: Any, report: dict[str, Any] | None = None,
+          calibration: Any = None) -> dict[str, F64]:
     """Run the tracker on the scenario through the pipeline (the head follows its commands);
     per-frame series (NaN where there is no estimate yet). A distorting lens is corrected
-    with the line-based model (:func:`engine.ptz.paper_sim.lens_calibration`); ``report``
-    receives the lens calibration's figures."""
+    with the line-based model (:func:`engine.ptz.paper_sim.lens_calibration`, or the given
+    ``calibration`` of the same lens); ``report`` receives the lens calibration's figures."""
     from engine.loop import run_tracking
     from engine.ptz.paper_sim import lens_calibration
     from engine.ptz.sim import PtzSimSource, PtzTargetTruth
     from engine.trackers.ptz import PtzDetails, PtzTracker
 
     src = PtzSimSource(scenario)
-    cal = None
-    if scenario.distortion_k3 != 0.0:
+    cal = calibration
+    if cal is None and scenario.distortion_k3 != 0.0:
         cal, rep = lens_calibration(src)
         if report is not None:
             report.update(rep)

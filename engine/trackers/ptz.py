@@ -27,6 +27,7 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any, ClassVar
 
 import numpy as np
@@ -47,6 +48,47 @@ PAPER_OMEGAS = tuple(2.0 * math.pi / 50.0 * j for j in range(4))
 #: figs. 3-5), so 0.1 mm^2/s^5 = 1e-7 m^2/s^5 (read in metres, 0.1 m^2/s^5 makes the bank
 #: pick the fastest model on the paper's circle: bench ptz ``paper_q_in_metres``)
 PAPER_Q_JERK_PSD = 1e-7
+
+#: the tracker's extensions beyond the paper, each as the overrides that switch it off (the
+#: paper's computation for that part); ``preset=paper`` is built from them and the ablation
+#: of ``bench ptz`` switches them off one at a time (as :data:`engine.beacons.params.EXTENSIONS`)
+EXTENSIONS: Mapping[str, Preset] = MappingProxyType({
+    "process_noise": Preset(
+        "white-jerk process-noise PSD 1e-4 m^2/s^5 per axis (mmae.Mmae q_psd); off: the "
+        "paper's diag[0.1, 0.1, 0.1] in its millimetres, 1e-7 m^2/s^5 (sec. 6.1)",
+        q_jerk_psd=PAPER_Q_JERK_PSD),
+    "moments_centre": Preset(
+        "target centre and radius from the colour mass inside the snake (snake.measure_target "
+        "centre_method='moments'); off: the mean of the contour points (sec. 4.2)",
+        centre_method="contour"),
+    "nis_reinit": Preset(
+        "re-initialise the bank when the mean NIS over 15 updates exceeds nis_reset "
+        "(mmae.Mmae); off: pure MMAE, never re-initialised", nis_reset=1e6),
+    "model_prob_floor": Preset(
+        "floor on the model probabilities (mmae.Mmae min_prob); off by default (the paper's "
+        "MMAE)", min_model_prob=0.0),
+    "gvf_force": Preset(
+        "gradient vector flow as the snake's external force (snake.gvf); off by default "
+        "(the paper's image gradient, sec. 4.1)", external_force="gradient"),
+})
+
+
+def _paper_preset() -> Preset:
+    """Every extension off (its :data:`EXTENSIONS` values) and the paper's constants."""
+    values: dict[str, object] = {}
+    for ext in EXTENSIONS.values():
+        values.update(ext.values)
+    values.update(omega_max_rad_s=2.0 * math.pi / 50.0 * 3, n_models=4, snake_alpha=0.5,
+                  snake_beta=0.05)
+    return Preset(
+        "Gaspar 2009 as published: four models 2 pi / 50 [0, 1, 2, 3] rad/s (sec. 6.1), "
+        "process noise PSD diag[0.1, 0.1, 0.1] read in the paper's millimetres (figs. 3-5: "
+        "0.1 mm^2/s^5 = 1e-7 m^2/s^5 white jerk per axis), snake alpha 0.5, beta 0.05 "
+        "with the image-gradient force (sec. 4.1, 6.1), the centre as the mean of the "
+        "contour points (sec. 4.2), pure MMAE (no probability floor) and no "
+        "re-initialisation on divergence. The paper gives no value for the measurement "
+        "noise R ('from an accurate study of the available sensors'), the initial "
+        "covariance or the dead band (kept as set)", **values)
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,18 +138,7 @@ class PtzParams(Params):
     #: the built-in ``ptz-sim`` source's ball (the Pan-tilt page starts on it); the paper's
     #: method as published (sec. 4-6)
     PRESETS: ClassVar[Mapping[str, Preset]] = {
-        "paper": Preset(
-            "Gaspar 2009 as published: four models 2 pi / 50 [0, 1, 2, 3] rad/s (sec. 6.1), "
-            "process noise PSD diag[0.1, 0.1, 0.1] read in the paper's millimetres (figs. 3-5: "
-            "0.1 mm^2/s^5 = 1e-7 m^2/s^5 white jerk per axis), snake alpha 0.5, beta 0.05 "
-            "with the image-gradient force (sec. 4.1, 6.1), the centre as the mean of the "
-            "contour points (sec. 4.2), pure MMAE (no probability floor) and no "
-            "re-initialisation on divergence. The paper gives no value for the measurement "
-            "noise R ('from an accurate study of the available sensors'), the initial "
-            "covariance or the dead band (kept as set)",
-            omega_max_rad_s=2.0 * math.pi / 50.0 * 3, n_models=4, q_jerk_psd=PAPER_Q_JERK_PSD,
-            snake_alpha=0.5, snake_beta=0.05, external_force="gradient",
-            centre_method="contour", min_model_prob=0.0, nis_reset=1e6),
+        "paper": _paper_preset(),
         "ptz-sim": Preset(
             f"target colour (BGR {_SIM.ball_bgr}) and radius ({_SIM.ball_radius_m} m) of the "
             "ball of the built-in ptz-sim source",
