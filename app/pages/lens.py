@@ -7,7 +7,9 @@
   the running source's frames; "on air" uses the typed values for frames without
   encoders), chessboard views (image files, or - for the built-in studio's zoom lens -
   rendered views at those encoders), pattern and square size; Calibrate adds the sample
-  (OpenCV, k1 k2; k3 and tangential fixed).
+  (OpenCV, k1 k2; k3 and tangential fixed). "Sample from PTZ calibration" makes the sample
+  from the project's pan-tilt calibration instead (the PTZ page's DLT and lens lines:
+  :func:`engine.ptz.lens_sample.lens_sample_from_ptz`).
 - Curves: the interpolated focal length and k1 over the zoom axis with the samples as dots
   and the live encoder as a line.
 - Camera offset: the tracked point -> nodal point transform (metres, degrees) saved in the
@@ -190,7 +192,18 @@ class LensPage(Page):
         self.calibrate_button = QPushButton("Calibrate sample")
         self.calibrate_button.setObjectName("lens_calibrate")
         self.calibrate_button.clicked.connect(self.calibrate)
-        form.addRow(self.calibrate_button)
+        self.from_ptz_button = QPushButton("Sample from PTZ calibration (DLT + lens lines)")
+        self.from_ptz_button.setObjectName("lens_from_ptz")
+        self.from_ptz_button.setToolTip(
+            "a sample at these encoders from the project's pan-tilt calibration (PTZ page: "
+            "Save head to project, Save distortion to project): focal length and principal "
+            "point from the DLT, Brown-Conrady k1 k2 k3 p1 p2 fitted to the line-based model; "
+            "lens lines alone keep the lens file's focal length at these encoders")
+        self.from_ptz_button.clicked.connect(self.sample_from_ptz)
+        make = QHBoxLayout()
+        make.addWidget(self.calibrate_button)
+        make.addWidget(self.from_ptz_button)
+        form.addRow(make)
         return box
 
     def _offset_box(self) -> QGroupBox:
@@ -242,6 +255,7 @@ class LensPage(Page):
     def _set_lens(self, lens: Any, what: str) -> None:
         self.ctx.edit_project(lambda proj: setattr(proj, "lens", lens))
         self.show_lens()
+        self.status.setText(f"{self.status.text()}<br>Last change: {what}.")
         self.ctx.log.info(f"lens: {what}")
 
     def show_offsets(self) -> None:
@@ -423,6 +437,32 @@ class LensPage(Page):
                        f"{sample.fx_px:.1f} px, k1 {sample.k1:+.4f}, rms {res.rms_px:.3f} px "
                        f"({len(res.used_images)} views)")
         self.clear_views()
+
+    def sample_from_ptz(self) -> None:
+        """A sample at the typed encoders from the project's DLT and line-based distortion
+        (:func:`engine.ptz.lens_sample.lens_sample_from_ptz`)."""
+        from engine.errors import StudioTrackError
+        from engine.lens import LensFile
+        from engine.ptz.lens_sample import lens_sample_from_ptz
+
+        lens = self._lens()
+        try:
+            sample, rep = lens_sample_from_ptz(
+                getattr(self.ctx.project, "ptz", None), self.zoom_spin.value(),
+                self.focus_spin.value(), lens=lens, entrance_pupil_m=self.pupil_spin.value())
+            if lens is None:
+                w, h = rep["image_size"]
+                lens = LensFile(w, h, (), name="studio lens")
+        except StudioTrackError as exc:
+            self.status.setText(f"<span style='color:#ff8080'>{exc}</span>")
+            self.ctx.log.warning(str(exc))
+            return
+        fit = (f", Brown-Conrady fit {rep['fit_rms_px']:.2f} px rms / {rep['fit_max_px']:.2f} "
+               "px max" if rep.get("distortion_from") else ", no distortion model")
+        self._set_lens(lens.with_sample(sample),
+                       f"sample zoom {sample.zoom_raw} focus {sample.focus_raw} from the PTZ "
+                       f"calibration ({rep['intrinsics_from']}): f {sample.fx_px:.1f} px, "
+                       f"k1 {sample.k1:+.4f}{fit}")
 
     def delete_selected(self) -> None:
         lens = self._lens()

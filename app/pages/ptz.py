@@ -804,6 +804,9 @@ class PtzPage(Page):
         head = head_from_dlt(res.decomposition, np.array([0.0, 0.0, 0.04]), 0.0, 0.0)
         cal = dataclasses.replace(self._calibration(), head=head, dlt_poses=(
             DltPose(0.0, 0.0, res.rmse_px, len(res.residuals_px)),))
+        if self.points.image is not None:  # the lens sample from this DLT needs it
+            h, w = self.points.image.shape[:2]
+            cal = dataclasses.replace(cal, image_size=(w, h))
         save_ptz(self.ctx, cal, f"head from the DLT (RMSE {res.rmse_px:.2f} px)")
         self.points.status.setText(self.points.status.text() + "  — saved to the project")
 

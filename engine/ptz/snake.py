@@ -37,15 +37,18 @@ def colour_score(image_bgr: NDArray[np.uint8], target_bgr: tuple[int, int, int])
     chromatic part of the target colour: 1 for the target colour, 0 for any grey, linear in
     the mix at anti-aliased edges. Works for any saturated colour, not only red.
     """
-    img = image_bgr.astype(np.float32)
+    import cv2
+
     t = np.asarray(target_bgr, dtype=np.float32)
     w = t - t.mean()
     n2 = float(w @ w)
     if n2 < 1.0:
         raise ValueError(f"target colour {target_bgr} is grey: choose a saturated colour")
-    chroma = img - img.mean(axis=2, keepdims=True)
-    score: F32 = np.clip((chroma @ w) / n2, 0.0, 1.0).astype(np.float32)
-    return score
+    # (pixel - its grey level) . w = pixel . w, as w sums to zero: one weighted channel sum
+    score = f32(cv2.transform(image_bgr.astype(np.float32), (w / n2).reshape(1, 3)))
+    if score.ndim == 3:
+        score = score[..., 0]
+    return f32(np.clip(score, 0.0, 1.0, out=score))
 
 
 def find_blob(score: F32, threshold: float = 0.5, min_area_px: int = 6,

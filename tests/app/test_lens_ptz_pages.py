@@ -64,6 +64,66 @@ def test_lens_page_calibrates_samples_into_the_project(qtbot, window, tmp_path) 
     _shot(window, "lens_page_1920x1080.png")
 
 
+def test_lens_sample_from_the_ptz_pages_dlt_and_lens_lines(qtbot, window) -> None:  # type: ignore[no-untyped-def]
+    """The Lens page makes a sample from the PTZ page's DLT and line-based distortion saved
+    in the project; without them, or with a lens file of another size, one line."""
+    import numpy as np
+
+    from engine.ptz.distortion import synthetic_distorted_grid
+    from engine.ptz.dlt import project_P
+    from engine.ptz.sim import CircleScenario
+
+    lens_page, ptz = window.page("Lens"), window.page("PTZ")
+    window.show_page("Lens")
+    lens_page.sample_from_ptz()
+    assert "no pan-tilt calibration" in lens_page.status.text()
+    assert window.ctx.project is None or window.ctx.project.lens is None
+    # the DLT: the simulator head's projection of points spread in front of it
+    sc = CircleScenario(distortion_k3=0.12)
+    head = sc.head()
+    rng = np.random.default_rng(4)
+    X = np.column_stack([rng.uniform(-2, 2, 24), rng.uniform(3, 8, 24), rng.uniform(0, 2.5, 24)])
+    uv = project_P(head.P(0.0, 0.0), X)
+    for x, m in zip(X, uv, strict=True):
+        ptz.points.add_image_point(float(m[0]), float(m[1]), tuple(float(c) for c in x))
+    ptz.points.solve()
+    assert ptz.points.result is not None
+    ptz.save_head()
+    assert window.ctx.project.ptz.image_size == (640, 480)
+    lens_page.zoom_spin.setValue(2000)
+    lens_page.sample_from_ptz()
+    (s,) = window.ctx.project.lens.samples
+    assert s.zoom_raw == 2000
+    assert s.fx_px == pytest.approx(head.K[0, 0], rel=1e-3)
+    assert s.k1 == 0.0
+    assert "no distortion model" in lens_page.status.text()
+    # the lens lines (lines straight in the world seen through the simulator's lens)
+    ptz.lines.set_image(np.zeros((480, 640, 3), np.uint8))
+    ptz.lines.lines = [[tuple(p) for p in ln] for ln in
+                       synthetic_distorted_grid(sc.radial(), (640, 480), noise_px=0.2, seed=3)]
+    ptz.lines.estimate()
+    ptz.save_distortion()
+    lens_page.sample_from_ptz()  # replaces the sample at these encoders
+    (s,) = window.ctx.project.lens.samples
+    assert s.k1 < -0.1  # barrel, as the simulated lens
+    assert "Brown-Conrady fit" in lens_page.status.text()
+    assert lens_page.table.rowCount() == 1
+    assert "lens lines" in lens_page.table.item(0, 8).text()
+    window.resize(1280, 800)
+    _shot(window, "lens_page_from_ptz_1280x800.png")
+    window.resize(1920, 1080)
+    _shot(window, "lens_page_from_ptz_1920x1080.png")
+    # a lens file of another image size is refused in one line, nothing lost
+    import dataclasses
+
+    window.ctx.edit_project(lambda p: setattr(p, "lens", dataclasses.replace(
+        p.lens, width=320, height=240)))
+    lens_page.zoom_spin.setValue(4000)
+    lens_page.sample_from_ptz()
+    assert "640x480 px, the lens file is 320x240" in lens_page.status.text()
+    assert len(window.ctx.project.lens.samples) == 1
+
+
 def test_offset_and_studio_frame_go_into_the_project_and_the_outputs(qtbot, window, tmp_path
                                                                      ) -> None:  # type: ignore[no-untyped-def]
     import numpy as np
