@@ -36,10 +36,12 @@ from PySide6.QtGui import QBrush, QColor
 from PySide6.QtWidgets import (
     QComboBox,
     QFileDialog,
+    QFrame,
     QGridLayout,
     QHBoxLayout,
     QLabel,
     QPushButton,
+    QScrollArea,
     QSplitter,
     QTableWidget,
     QTableWidgetItem,
@@ -477,7 +479,13 @@ class LivePanel(QWidget):
         for it in (*self.snake_items, self.final_contour, self.centre, self.pred):
             self.video.addItem(it)
 
-        self.plots = pg.GraphicsLayoutWidget()
+        # the video keeps its aspect: no axes, no padding, and its pane is sized to the
+        # image's aspect at the row's height (_fit_video)
+        self.video.hideAxis("left")
+        self.video.hideAxis("bottom")
+        self.video.getViewBox().setDefaultPadding(0.0)
+        self.plots = pg.GraphicsLayoutWidget()  # beside the video: top view, height, Fig. 6
+        self.kin = pg.GraphicsLayoutWidget()  # below: position, velocity, acceleration
         # short titles (they must fit a 1280 px window) + axis labels carrying the units
         self.top = self.plots.addPlot(0, 0, title="Top view")
         self.top.setAspectLocked(True)
@@ -501,7 +509,7 @@ class LivePanel(QWidget):
         self.kin_items: list[list[tuple[Any, Any, Any, Any]]] = []
         for k, (title, unit) in enumerate((("Position ±2σ", "m"), ("Velocity ±2σ", "m/s"),
                                             ("Acceleration ±2σ", "m/s²"))):
-            pl = self.plots.addPlot(2 + k // 2, k % 2, title=title)
+            pl = self.kin.addPlot(0, k, title=title)
             _axes(pl, "time (s)", f"x y z ({unit})")
             items = []
             for a in range(3):
@@ -515,10 +523,10 @@ class LivePanel(QWidget):
                 items.append((lo, hi, est, tru))
             self.kin_plots.append(pl)
             self.kin_items.append(items)
-        self.plots.addLabel(
+        self.kin.addLabel(
             "top/height: red est., white truth<br>turn rate: blue est., red truth<br>"
             "x red · y green · z blue<br>solid: est. · dashed: truth",
-            3, 1, color="#9aa3b2", size="9pt",
+            0, 3, color="#9aa3b2", size="9pt",
         )
 
         left = QWidget()
@@ -530,21 +538,50 @@ class LivePanel(QWidget):
         ll.addWidget(self.head_combo)
         ll.addWidget(self.calib_button)
         ll.addWidget(self.readout)
-        ll.addWidget(self.form, 1)
+        form_scroll = QScrollArea()  # a long form scrolls, not the page
+        form_scroll.setWidgetResizable(True)
+        form_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        form_scroll.setWidget(self.form)
+        ll.addWidget(form_scroll, 1)
         left.setMinimumWidth(300)  # combo boxes and 5-decimal spin boxes stay readable
         self.readout.setText(
             "Idle. Start runs the simulated pan-tilt studio (ptz-sim): the camera follows the "
             "red target."
         )
+        self.video_row = QSplitter()
+        self.video_row.addWidget(self.video)
+        self.video_row.addWidget(self.plots)
+        self.right = QSplitter(Qt.Orientation.Vertical)
+        self.right.addWidget(self.video_row)
+        self.right.addWidget(self.kin)
+        self.right.setSizes([600, 400])
         split = QSplitter()
         split.addWidget(left)
-        split.addWidget(self.video)
-        split.addWidget(self.plots)
-        split.setSizes([310, 340, 560])
+        split.addWidget(self.right)
+        split.setSizes([310, 900])
         split.setCollapsible(0, False)
         lay = QVBoxLayout(self)
         lay.addWidget(split)
         self.update_buttons()
+
+    def _fit_video(self) -> None:
+        """Size the video's pane to its image's aspect: as wide as the plots beside it
+        (``SIDE_MIN_PX``) and the kinematics row below (30 % of the height) leave room for,
+        the row's height following; the operator's handle drags hold until the next
+        resize."""
+        img = self.video.image_item.image
+        h_img, w_img = (img.shape[:2] if img is not None else (480, 640))
+        aspect = w_img / max(h_img, 1)
+        W, H = self.right.width(), self.right.height()
+        below = max(KIN_MIN_PX, int(0.3 * H))
+        w = max(160, min(W - SIDE_MIN_PX, int((H - below) * aspect)))
+        h = int(w / aspect)
+        self.right.setSizes([h, max(H - h, 1)])
+        self.video_row.setSizes([w, max(W - w, 1)])
+
+    def resizeEvent(self, event: Any) -> None:
+        super().resizeEvent(event)
+        self._fit_video()
 
     def start(self, spec: str = "ptz-sim:duration=60,period=50", realtime: bool = True) -> None:
         if self.run.is_running:
@@ -746,6 +783,10 @@ HEAD_MODES = (("Head: simulated motors", "sim"),
               ("Head: loopback VISCA camera", "visca"),
               ("Head: calibrated chain (project)", "calibrated"))
 CHAIN_K3 = 0.12
+#: the Live tab's layout: the plots beside the video keep this width, the row below this
+#: height (the video takes the rest at its image's aspect)
+SIDE_MIN_PX = 430
+KIN_MIN_PX = 180
 CHAIN_OPTIONS = f",markers=1,distortion={CHAIN_K3},encoder=0"
 
 

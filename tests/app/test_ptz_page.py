@@ -141,3 +141,24 @@ def pg_point(u: float, v: float):  # type: ignore[no-untyped-def]
     from PySide6.QtCore import QPointF
 
     return QPointF(u, v)
+
+
+@pytest.mark.parametrize("size", [(1280, 800), (1920, 1080)])
+def test_live_video_pane_takes_the_images_aspect(qtbot, window, size) -> None:  # type: ignore[no-untyped-def]
+    """The Live tab's video has no empty margins: its pane is sized to the image's 4:3,
+    the plots beside and below keep their room."""
+    from app.pages.ptz import KIN_MIN_PX, SIDE_MIN_PX
+
+    window.show_page("PTZ")
+    window.resize(*size)
+    live = window.page("PTZ").live
+    qtbot.waitUntil(lambda: live.video.width() > 100)
+    live._fit_video()  # the resize event has run; once more after the layout settled
+    vw, vh = live.video.width(), live.video.height()
+    assert vw / vh == pytest.approx(640 / 480, rel=0.03)
+    assert live.plots.width() >= SIDE_MIN_PX - 10
+    assert live.kin.height() >= KIN_MIN_PX - 10
+    # the image fills the view: its range is the image, no padding
+    (x0, x1), (y0, y1) = live.video.getViewBox().viewRange()
+    assert (x1 - x0) == pytest.approx(640, rel=0.05)
+    assert (y1 - y0) == pytest.approx(480, rel=0.05)
