@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.bench.plots import save_figure
 from engine.bench.stats import bootstrap_ci, paired_difference
 from engine.progress import log
 
@@ -104,6 +105,18 @@ def _paired(runs: Sequence[dict[str, float]], ref: Sequence[dict[str, float]]
     return {k: paired_difference([r[k] for r in runs], [r[k] for r in ref]) for k in METRICS}
 
 
+def _rows(runs: Mapping[str, list[dict[str, float]]], names: Sequence[str], ref: str,
+          ref_label: str, prefix: str, diff_key: str) -> list[dict[str, Any]]:
+    """The reference's row, then one per variant with its paired difference to it."""
+    out = [_row(ref_label, runs[ref])]
+    for vname in names:
+        if vname != ref:
+            out.append({**_row(vname, runs[vname]), "extension": vname.removeprefix(prefix),
+                        diff_key: _paired(runs[vname], runs[ref]),
+                        "active": runs[vname] != runs[ref]})
+    return out
+
+
 def ablation(names: Sequence[str] | None = None, seeds: Sequence[int] = DEFAULT_SEEDS,
              harder_duration_s: float = HARDER_DURATION_S,
              table: Mapping[str, tuple[Any, float]] | None = None,
@@ -141,20 +154,9 @@ def ablation(names: Sequence[str] | None = None, seeds: Sequence[int] = DEFAULT_
             e = np.mean([r["pos_err_m_steady"] for r in runs[vname]])
             log(f"  ablation {name}: {vname:28s} steady pos err {100 * e:.1f} cm "
                 f"(mean over {len(seeds)} seeds)")
-        rows = [_row("default (all on)", runs["default"])]
-        for vname in dflt:
-            if vname != "default":
-                rows.append({**_row(vname, runs[vname]),
-                             "extension": vname.removeprefix("without "),
-                             "minus_default": _paired(runs[vname], runs["default"]),
-                             "active": runs[vname] != runs["default"]})
-        added = [_row("paper (all off)", runs["paper"])]
-        for vname in pap:
-            if vname != "paper":
-                added.append({**_row(vname, runs[vname]),
-                              "extension": vname.removeprefix("paper + "),
-                              "minus_paper": _paired(runs[vname], runs["paper"]),
-                              "active": runs[vname] != runs["paper"]})
+        rows = _rows(runs, list(dflt), "default", "default (all on)", "without ",
+                     "minus_default")
+        added = _rows(runs, list(pap), "paper", "paper (all off)", "paper + ", "minus_paper")
         total = paired_difference([r["pos_err_m_steady"] for r in runs["paper"]],
                                   [r["pos_err_m_steady"] for r in runs["default"]])
         attribution: dict[str, Any] = {"paper_minus_default_pos_err_m": total}
@@ -207,8 +209,4 @@ def plot(abl: Mapping[str, Any], folder: Path) -> str:
         ax.grid(alpha=0.3, axis="x")
     fig.suptitle("PTZ ablation: blue = default minus the extension, orange = paper plus it "
                  "(> 0: the extension helps)", fontsize=9)
-    p = folder / "ptz_ablation.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return str(p)
+    return save_figure(fig, folder, "ptz_ablation.png")
