@@ -56,6 +56,7 @@ import numpy as np
 from engine.bench import BenchSpec
 from engine.bench import beacon_paper as bp
 from engine.bench.beacon_paper import run_sim
+from engine.bench.plots import save_figure
 from engine.progress import log
 
 HELP = "range-beacon SLAM (Yang 2007): paper experiment, Map Adjustment, particles, speed"
@@ -170,12 +171,8 @@ def _plots(folder: Path, settings: dict[str, dict[str, Any]],
         ax.set_title(titles[name], fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend()
-    p = folder / "beacon_error_over_time.png"
     fig.suptitle("Path error over time, 200 particles (cf. paper fig. 7/8)")
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "beacon_error_over_time.png"))
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 5))
     for ax, key in zip(axes, ("without_ma", "with_ma"), strict=True):
@@ -190,11 +187,7 @@ def _plots(folder: Path, settings: dict[str, dict[str, Any]],
         ax.set_title(f"B, seed 0, {LABELS[key]}: path RMSE {r['path_rmse']:.2f} m",
                      fontsize=10)
         ax.legend(fontsize=8)
-    p = folder / "beacon_trajectory.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "beacon_trajectory.png"))
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4))
     for ax, (name, sw) in zip(axes, sweeps.items(), strict=True):
@@ -209,11 +202,7 @@ def _plots(folder: Path, settings: dict[str, dict[str, Any]],
         ax.set_title(titles[name], fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    p = folder / "beacon_particles.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "beacon_particles.png"))
     return out
 
 

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 
 from engine.beacons.params import EXTENSIONS, BeaconFilterParams
 from engine.beacons.simulator import SimRun
+from engine.bench.plots import save_figure
 from engine.bench.stats import (
     boot_indices,
     bootstrap_ci,
@@ -428,11 +429,7 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
     ax.set_title("Crane height over the move; beacon heights 2.2-7 m", fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    p = folder / "beacon_studio_scene.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "beacon_studio_scene.png"))
 
     # error over time (cf. fig. 7/8)
     fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=False)
@@ -453,12 +450,8 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
         ax.set_ylabel("camera position error after alignment (m)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    p = folder / "beacon_studio_error_over_time.png"
     fig.suptitle("Studio simulation, cf. paper fig. 7/8", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "beacon_studio_error_over_time.png"))
 
     # particles for the paper's accuracy
     fig, ax = plt.subplots(figsize=(8, 5))
@@ -487,11 +480,7 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
                  f", without {count(pw['without_ma'])}", fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    p = folder / "beacon_studio_particles.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "beacon_studio_particles.png"))
 
     if abl is not None:
         rows = [r for r in abl["rows"] if "minus_default" in r]
@@ -514,9 +503,5 @@ def plots(folder: Path, side: Mapping[str, Any], runs: Mapping[str, Runs],
             ax.set_xlabel("change of final beacon error (m), mean over seeds, 95 % CI")
             ax.set_title(title, fontsize=9)
             ax.grid(alpha=0.3, axis="x")
-        p = folder / "beacon_ablation.png"
-        fig.tight_layout()
-        fig.savefig(p, dpi=100)
-        plt.close(fig)
-        out.append(str(p))
+        out.append(save_figure(fig, folder, "beacon_ablation.png"))
     return out

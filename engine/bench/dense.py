@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from engine.bench import BenchSpec
+from engine.bench.plots import save_figure
 from engine.progress import log
 from engine.shared_data import shared_data_dir
 
@@ -487,11 +488,7 @@ def _plots(folder: Path, rail: dict[str, Any] | None, kfc: dict[str, Any] | None
         ax.set_ylabel("translation error (cm)")
         ax.set_title("Studio rail back and forth (cf. Tykkälä 2014 Fig. 13)")
         ax.legend(loc="upper left")
-        fig.tight_layout()
-        p = folder / "rail_error.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(str(p))
+        written.append(save_figure(fig, folder, "rail_error.png", dpi=110))
     if kfc is not None and kfc["rows"]:
         fig, ax = plt.subplots(figsize=(6, 4))
         for family, colour in (("sweep", "tab:blue"), ("true_poses", "tab:orange")):
@@ -508,11 +505,7 @@ def _plots(folder: Path, rail: dict[str, Any] | None, kfc: dict[str, Any] | None
         ax.set_ylabel("translation error (cm)")
         ax.set_title("Keyframe count vs switching error (cf. Fig. 14)")
         ax.legend()
-        fig.tight_layout()
-        p = folder / "keyframe_count.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(str(p))
+        written.append(save_figure(fig, folder, "keyframe_count.png", dpi=110))
     return written
 
 

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.bench.plots import save_figure
 from engine.progress import log
 
 F64 = NDArray[np.float64]
@@ -444,11 +445,7 @@ def plots(folder: Any, fig: Mapping[str, Any] | None, rail: Mapping[str, Any] | 
         axes[0].legend(fontsize=7)
         f.suptitle("Keyframe count vs switching error, translation and rotation (cf. Fig. 14)",
                    fontsize=10)
-        f.tight_layout()
-        p = folder / "fig14.png"
-        f.savefig(p, dpi=100)
-        plt.close(f)
-        written.append(str(p))
+        written.append(save_figure(f, folder, "fig14.png"))
     if rail is not None and "_series_all" in rail:
         s = rail["_series_all"]
         f, ax = plt.subplots(figsize=(11, 4.5))
@@ -474,9 +471,5 @@ def plots(folder: Any, fig: Mapping[str, Any] | None, rail: Mapping[str, Any] | 
         ax.set_title("Studio rail back and forth, keyframes from a clean sweep and from one "
                      "with the presenter (cf. Fig. 13)", fontsize=10)
         ax.legend(fontsize=7, loc="upper left")
-        f.tight_layout()
-        p = folder / "fig13_dirty_sweep.png"
-        f.savefig(p, dpi=100)
-        plt.close(f)
-        written.append(str(p))
+        written.append(save_figure(f, folder, "fig13_dirty_sweep.png"))
     return written

@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from engine.bench.plots import save_figure
 from engine.progress import log
 
 F64 = NDArray[np.float64]
@@ -247,11 +248,7 @@ def _plots(folder: Path, series: dict[str, dict[str, F64]], omegas: tuple[float,
         ax.grid(alpha=0.3)
     for ax in axes[1]:
         ax.set_xlabel("t (s)")
-    p = folder / "ptz_paper_fig6.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "ptz_paper_fig6.png"))
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     for key, name in (("paper_experiment", "paper set"),
@@ -271,11 +268,7 @@ def _plots(folder: Path, series: dict[str, dict[str, F64]], omegas: tuple[float,
         ax.set_yscale("log")
         ax.legend(fontsize=7)
     fig.suptitle("Estimation errors over time on the paper's circle (cf. fig. 5)", fontsize=10)
-    p = folder / "ptz_paper_errors.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "ptz_paper_errors.png"))
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 4))
     for key, name in (("paper_range", "paper set"), ("paper_range_default", "default set")):
@@ -293,9 +286,5 @@ def _plots(folder: Path, series: dict[str, dict[str, F64]], omegas: tuple[float,
     axes[1].set_title("Position error by distance", fontsize=9)
     axes[1].legend(fontsize=8)
     axes[1].grid(alpha=0.3)
-    p = folder / "ptz_paper_range.png"
-    fig.tight_layout()
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    out.append(str(p))
+    out.append(save_figure(fig, folder, "ptz_paper_range.png"))
     return out
