@@ -27,7 +27,7 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -136,8 +136,9 @@ def ablation(names: Sequence[str] | None = None, seeds: Sequence[int] = DEFAULT_
         "('minus_paper' < 0: it helps); paired per-seed differences of the steady-window "
         "medians, bootstrap 95 % intervals over the seeds",
         "extensions": {n: {"help": e.help, "off_values": dict(e.values),
-                           "on_by_default": dataclasses.replace(PtzParams(), **e.values)
-                           != PtzParams()} for n, e in EXTENSIONS.items()},
+                           "on_by_default": dataclasses.replace(cast(Any, PtzParams()),
+                                                                **e.values) != PtzParams()}
+                       for n, e in EXTENSIONS.items()},
         "scenarios": {}}
     for name in names or list(table):
         sc0, omega = table[name]
