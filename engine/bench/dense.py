@@ -312,12 +312,13 @@ def _speed(args: argparse.Namespace, store: Any) -> dict[str, Any]:
     stages: dict[str, dict[str, list[float]]] = {k: {} for k in trackers}
     iters: dict[str, list[int]] = {k: [] for k in trackers}
     names = list(trackers)
+    order_rng = np.random.default_rng(0)
     for f in frames:
-        # the order turns by one each frame: every tracker runs as often right after the
-        # OpenCV peer (whose ~70 ms leave the caches cold) as in any other place (with a
-        # fixed order ``dense`` always ran first, ~0.5 ms slower than the same tracker second)
-        turn = f.index % len(names)
-        for name in names[turn:] + names[:turn]:
+        # a new (seeded) order each frame: every tracker runs as often right after the OpenCV
+        # peer (whose ~70 ms leave the caches cold) as the others. In a fixed order, or one
+        # turned by one place per frame (the same cycle), ``dense`` always followed it and was
+        # ~0.5 ms slower than the same tracker in second place (dense vs dense_1thread)
+        for name in [names[int(i)] for i in order_rng.permutation(len(names))]:
             tr = trackers[name]
             c0, t0 = time.process_time(), time.perf_counter()
             r = tr.track(f)
