@@ -22,6 +22,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,26 +58,23 @@ class KeyframeFiles:
     width: int
     height: int
 
-    def read_gray(self) -> NDArray[np.uint8]:
+    def _read_png(self, path: Path, dtype: type[np.generic], what: str) -> NDArray[Any]:
+        """One single-channel PNG of this keyframe, checked for dtype and size."""
         import cv2
 
-        img = cv2.imread(str(self.gray_path), cv2.IMREAD_UNCHANGED)
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if img is None:
-            raise KeyframeStoreError(f"{self.gray_path}: missing or not a readable PNG")
-        if img.dtype != np.uint8 or img.ndim != 2:
-            raise KeyframeStoreError(f"{self.gray_path}: expected an 8-bit grey image")
-        self._check_size(self.gray_path, img.shape)
-        return u8(img)
+            raise KeyframeStoreError(f"{path}: missing or not a readable PNG")
+        if img.dtype != dtype or img.ndim != 2:
+            raise KeyframeStoreError(f"{path}: expected {what}")
+        self._check_size(path, img.shape)
+        return img
+
+    def read_gray(self) -> NDArray[np.uint8]:
+        return u8(self._read_png(self.gray_path, np.uint8, "an 8-bit grey image"))
 
     def read_depth_m(self) -> NDArray[np.float32]:
-        import cv2
-
-        img = cv2.imread(str(self.depth_path), cv2.IMREAD_UNCHANGED)
-        if img is None:
-            raise KeyframeStoreError(f"{self.depth_path}: missing or not a readable PNG")
-        if img.dtype != np.uint16 or img.ndim != 2:
-            raise KeyframeStoreError(f"{self.depth_path}: expected a 16-bit depth image")
-        self._check_size(self.depth_path, img.shape)
+        img = self._read_png(self.depth_path, np.uint16, "a 16-bit depth image")
         out: NDArray[np.float32] = img.astype(np.float32) / np.float32(self.depth_scale)
         return out
 
