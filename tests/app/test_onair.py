@@ -47,6 +47,35 @@ def _rx() -> socket.socket:
     return s
 
 
+def _page_texts(page) -> list[str]:  # type: ignore[no-untyped-def]
+    """What a page shows in words: its visible labels and its status lights."""
+    from PySide6.QtWidgets import QLabel
+
+    from widgets.status_light import StatusLight
+
+    out = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
+    out += [s.text for s in page.findChildren(StatusLight)]
+    return out
+
+
+def _start_on_its_page(qtbot, window, tracker, factory):  # type: ignore[no-untyped-def]
+    """Show the page that drives ``tracker``, start a run of ``factory``'s tracker from it
+    on the small studio and wait until the page has drawn; returns (title, page)."""
+    from app.pages import page_for_tracker
+    from app.run_owner import RunRequest
+
+    run = window.ctx.run
+    spec = page_for_tracker(tracker)
+    title = spec.title if spec is not None else "Live"
+    window.show_page(title)
+    page = window.page(title)
+    with qtbot.waitSignal(run.started, timeout=30_000):
+        run.start(RunRequest(SMALL_STUDIO, tracker, page=title, tracker_factory=factory))
+    qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
+                             page.draws > 0)[1], timeout=30_000)
+    return title, page
+
+
 @pytest.mark.parametrize("title", ["PTZ", "Beacons", "Presenter"])
 def test_runs_started_on_any_page_reach_the_outputs(qtbot, window, title) -> None:  # type: ignore[no-untyped-def]
     rx = _rx()
@@ -178,14 +207,7 @@ def test_a_lost_frame_shows_its_own_numbers_and_no_used_points(qtbot, window, li
 def test_nothing_says_tracking_on_any_page_after_stop(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
     """Stale-state check on every page: while a run tracks, pages that show the run's state
     say so; after Stop no page (nor the header) still says TRACKING or shows a frame rate."""
-    from PySide6.QtWidgets import QLabel
 
-    from widgets.status_light import StatusLight
-
-    def texts(page) -> list[str]:  # type: ignore[no-untyped-def]
-        out = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
-        out += [s.text for s in page.findChildren(StatusLight)]
-        return out
 
     run = window.ctx.run
     live.configure(source=SMALL_STUDIO, tracker="ground-truth", realtime=True)
@@ -198,7 +220,7 @@ def test_nothing_says_tracking_on_any_page_after_stop(qtbot, window, live) -> No
         for _ in range(3):
             window.display_tick(force_header=True)
             qtbot.wait(20)
-        if any("TRACKING" in t for t in texts(window.page(title))):
+        if any("TRACKING" in t for t in _page_texts(window.page(title))):
             seen_tracking.append(title)
     assert "Live" in seen_tracking
     assert "Operations" in seen_tracking
@@ -207,7 +229,7 @@ def test_nothing_says_tracking_on_any_page_after_stop(qtbot, window, live) -> No
     for title in window.pages:
         window.show_page(title)
         window.display_tick(force_header=True)
-        stale = [t for t in texts(window.page(title)) if "TRACKING" in t]
+        stale = [t for t in _page_texts(window.page(title)) if "TRACKING" in t]
         assert stale == [], (title, stale)
         assert window.header.state.state == "STOPPED"
         assert window.header.state.fps_text == "–"
@@ -222,18 +244,8 @@ def test_an_engine_error_says_error_on_its_page_never_tracking(qtbot, window, tr
     TRACKING, the output chip says LOST instead of a green rate."""
     import dataclasses
 
-    from PySide6.QtWidgets import QLabel
-
-    from app.pages import page_for_tracker
-    from app.run_owner import RunRequest
     from engine.pipeline import RunPhase
     from tests.app.fakes import FakeParams, FakeTracker
-    from widgets.status_light import StatusLight
-
-    def texts(page) -> list[str]:  # type: ignore[no-untyped-def]
-        out = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
-        out += [s.text for s in page.findChildren(StatusLight)]
-        return out
 
     def failing() -> FakeTracker:
         t = FakeTracker(dataclasses.replace(FakeParams(), fail_at_frame=15))
@@ -245,21 +257,15 @@ def test_an_engine_error_says_error_on_its_page_never_tracking(qtbot, window, tr
     run.apply_outputs(OutputConfig(targets=(TargetSpec("opentrackio", "127.0.0.1",
                                                        rx.getsockname()[1]),)))
     run.set_outputs_enabled(True)
-    spec = page_for_tracker(tracker)
-    title = spec.title if spec is not None else "Live"
-    window.show_page(title)
-    page = window.page(title)
+    title = tracker
     try:
-        with qtbot.waitSignal(run.started, timeout=30_000):
-            run.start(RunRequest(SMALL_STUDIO, tracker, page=title, tracker_factory=failing))
-        qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
-                                 page.draws > 0)[1], timeout=30_000)
+        title, page = _start_on_its_page(qtbot, window, tracker, failing)
         qtbot.waitUntil(lambda: run.pipeline is not None
                         and run.pipeline.phase is RunPhase.FAULT, timeout=30_000)
         for _ in range(4):
             window.display_tick(force_header=True)
             qtbot.wait(30)
-        shown = texts(page)
+        shown = _page_texts(page)
         header = window.header.state
     finally:
         run.stop()
@@ -279,12 +285,7 @@ def test_a_stalled_engine_says_lost_on_its_page_as_in_the_header(qtbot, window, 
     stalled) and the page that drives the tracker says LOST too; nothing says TRACKING."""
     import threading
 
-    from PySide6.QtWidgets import QLabel
-
-    from app.pages import page_for_tracker
-    from app.run_owner import RunRequest
     from tests.app.fakes import FakeParams, FakeTracker
-    from widgets.status_light import StatusLight
 
     release = threading.Event()
 
@@ -300,20 +301,13 @@ def test_a_stalled_engine_says_lost_on_its_page_as_in_the_header(qtbot, window, 
         return t
 
     run = window.ctx.run
-    spec = page_for_tracker(tracker)
-    title = spec.title if spec is not None else "Live"
-    window.show_page(title)
-    page = window.page(title)
+    title = tracker
     try:
-        with qtbot.waitSignal(run.started, timeout=30_000):
-            run.start(RunRequest(SMALL_STUDIO, tracker, page=title, tracker_factory=hanging))
-        qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
-                                 page.draws > 0)[1], timeout=30_000)
+        title, page = _start_on_its_page(qtbot, window, tracker, hanging)
         qtbot.waitUntil(lambda: (window.display_tick(force_header=True),
                                  "stalled" in window.header.state.message)[1], timeout=30_000)
         window.display_tick(force_header=True)
-        shown = [lab.text() for lab in page.findChildren(QLabel) if lab.isVisibleTo(page)]
-        shown += [s.text for s in page.findChildren(StatusLight)]
+        shown = _page_texts(page)
         header = window.header.state
     finally:
         release.set()
