@@ -76,6 +76,14 @@ class DenseParams(Params):
                                     help="weight of a point-to-plane depth residual (ICP-like) "
                                     "added to the photometric cost at the finest level, each in "
                                     "units of its robust scale; 0: photometric only (the paper)")
+    min_geometric_scale_m: float = param(1e-6, lo=1e-9, hi=0.01, step=1e-6,
+                                         help="floor of the geometric term's robust scale "
+                                         "(median |point-to-plane residual|), a guard "
+                                         "against zero only, like the photometric one: a "
+                                         "floor above the depth noise weights the geometric "
+                                         "term below the photometric (1 mm: the noise-free "
+                                         "studio rail drifted 8 mm in one cycle, 1.4 mm at "
+                                         "1 um)")
     geometric_points: int = param(0, lo=0, hi=76800, step=1024,
                                   help="points of the geometric term, spread over all valid "
                                   "depth (walls and floors too); 0: the photometric points")

@@ -79,10 +79,15 @@ def full_rays(intr: Intrinsics) -> F64:
 
 
 def _normals(depth: F32, intr: Intrinsics, uf: NDArray[np.int64], vf: NDArray[np.int64],
-             P: F64, step: int = 2, max_jump: float = 0.05) -> F64:
+             P: F64, step: int = 2, max_jump: float = 0.05, planarity: float = 3.0) -> F64:
     """Unit surface normals (pointing at the camera) at full-resolution pixels ``(uf, vf)``
     from the cross product of central depth differences ``step`` pixels away; zero where a
-    neighbour is missing or beyond a depth jump (``max_jump`` of the depth)."""
+    neighbour is missing or beyond a depth jump (``max_jump`` of the depth), and where the
+    point is not on a plane with its neighbours: its offset along the normal from the midpoint
+    of a neighbour pair beyond ``planarity`` times the robust spread of that offset over all
+    the points (the depth noise; 2 % of the pair's span on noise-free depth). A normal across a
+    crease or a small step is the average of two surfaces, neither's: on the studio rail those
+    few points, being the only ones with a normal along the rail, set the alignment there."""
     rays = full_rays(intr)
     h, w = depth.shape
     def point(du: int, dv: int) -> tuple[F64, NDArray[np.bool_]]:
@@ -100,6 +105,15 @@ def _normals(depth: F32, intr: Intrinsics, uf: NDArray[np.int64], vf: NDArray[np
     norm = np.linalg.norm(n, axis=1)
     ok = okr & okl & okd & oku & (norm > 1e-12)
     n = np.where(ok[:, None], n / np.where(norm > 0, norm, 1.0)[:, None], 0.0)
+    if planarity > 0.0 and np.any(ok):
+        # n is orthogonal to both chords: the centre's offset from each chord's midpoint
+        off = np.abs(np.stack([np.sum(n * (0.5 * (pr + pl) - P), axis=1),
+                               np.sum(n * (0.5 * (pd + pu) - P), axis=1)], axis=1))
+        span = np.stack([np.linalg.norm(pr - pl, axis=1), np.linalg.norm(pd - pu, axis=1)],
+                        axis=1)
+        spread = 1.4826 * float(np.median(off[ok]))
+        ok &= np.all(off <= planarity * spread + 0.02 * span, axis=1)
+        n[~ok] = 0.0
     flip = np.sum(n * P, axis=1) > 0  # towards the camera
     n[flip] = -n[flip]
     return n
@@ -122,7 +136,6 @@ def _ro(a: NDArray[Any], dtype: type[np.generic]) -> NDArray[Any]:
 
 _NO_N = _ro(np.zeros((3, 0)), np.float32)
 _NO_JG = _ro(np.zeros((6, 0)), np.float32)
-_NO_RAYS = _ro(np.zeros((1, 1, 2)), np.float64)
 _NO_TCD = _ro(np.eye(4), np.float64)
 
 
@@ -394,7 +407,6 @@ def align(
         _ro(Pg, f32) if use_geo and Pg is not None else _NO_N,
         _ro(normals, f32) if use_geo and normals is not None else _NO_N,
         _ro(Jg, f32) if use_geo and Jg is not None else _NO_JG,
-        _ro(full_rays(intr), f64) if use_geo else _NO_RAYS,
         float(geo_weight) if use_geo else 0.0, float(min_geo_scale_m),
         _NO_TCD if T_color_depth is None else _ro(T_color_depth, f64),
         float(stop_px), float(ref.z_median_m), float(quality_scale), int(threads), w, uv, e,

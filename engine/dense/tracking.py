@@ -209,6 +209,7 @@ class _DenseBase:
             use_depth=p.use_depth_weights, min_residual_scale=p.min_residual_scale,
             scale_over_kept=p.scale_over_kept, threads=p.threads,
             brightness_offset=p.brightness_offset, geo_weight=p.geometric_weight,
+            min_geo_scale_m=p.min_geometric_scale_m,
             brightness_gain=p.brightness_gain,
             stop_px=p.stop_px, level_fraction=p.level_fraction_fine_to_coarse,
             quality_scale=self._quality_scale(),
