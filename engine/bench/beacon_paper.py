@@ -316,14 +316,28 @@ def particles_needed(grid: Sequence[int], sweep: Mapping[str, Mapping[int, Runs]
 
 
 # ---------------------------------------------------------------- ablation
-def ablation(scene: Scene, particles: int = 200) -> dict[str, Any]:
-    """Default with MA, one extension off at a time; paper with one extension on."""
+def _ma_effect(params: BeaconFilterParams, scene: Scene, with_ma: Runs) -> dict[str, Any]:
+    """Map Adjustment's paired effect on a variant: with MA minus without (same seeds)."""
+    without = run_scene(replace(params, map_adjustment=False), scene)
+    return {k: paired_difference(getattr(with_ma, k), getattr(without, k)) for k in METRICS}
+
+
+def ablation(scene: Scene, particles: int = 200, ma_effect: bool = True) -> dict[str, Any]:
+    """Default with MA, one extension off at a time; paper with one extension on. With
+    ``ma_effect`` each row also runs without MA: its ``ma_effect_paired`` (with minus without
+    MA, < 0: MA helps) shows which extension takes over what MA does."""
     default = replace(BeaconFilterParams(), n_particles=particles)
     paper = replace(default.with_preset("paper"), n_particles=particles)
     ref = run_scene(default, scene)
     ref_p = run_scene(paper, scene)
-    rows: list[dict[str, Any]] = [{"name": "default (all on)", **summary(ref)}]
-    added: list[dict[str, Any]] = [{"name": "paper (all off)", **summary(ref_p)}]
+
+    def ma(params: BeaconFilterParams, runs: Runs) -> dict[str, Any]:
+        return {"ma_effect_paired": _ma_effect(params, scene, runs)} if ma_effect else {}
+
+    rows: list[dict[str, Any]] = [{"name": "default (all on)", **summary(ref),
+                                   **ma(default, ref)}]
+    added: list[dict[str, Any]] = [{"name": "paper (all off)", **summary(ref_p),
+                                    **ma(paper, ref_p)}]
     defaults = BeaconFilterParams()
     for name, ext in EXTENSIONS.items():
         off = with_values(default, ext.values)
@@ -338,10 +352,13 @@ def ablation(scene: Scene, particles: int = 200) -> dict[str, Any]:
             row["active"] = bool(not (np.array_equal(r.path_rmse, ref.path_rmse)
                                       and np.array_equal(r.beacon_err_final,
                                                          ref.beacon_err_final)))
+            row.update(ma(off, r))
             d = row["minus_default"]["beacon_err_final"]
             log(f"  ablation {row['name']:34s} beacons {row['beacon_err_final']:.2f} m "
                 f"(minus default {d['mean_diff']:+.2f} [{d['ci95'][0]:+.2f}, "
-                f"{d['ci95'][1]:+.2f}]), path {row['path_rmse']:.2f} m")
+                f"{d['ci95'][1]:+.2f}]), path {row['path_rmse']:.2f} m"
+                + (f", MA effect {row['ma_effect_paired']['beacon_err_final']['mean_diff']:+.2f}"
+                   " m" if ma_effect else ""))
             # the paper's set with this extension switched on (the default's values)
             on = with_values(paper, {k: getattr(defaults, k) for k in ext.values})
             if on != paper:
@@ -349,15 +366,20 @@ def ablation(scene: Scene, particles: int = 200) -> dict[str, Any]:
                 added.append({"name": f"paper + {name}", "extension": name, **summary(rp),
                               "minus_paper": {k: paired_difference(getattr(rp, k),
                                                                    getattr(ref_p, k))
-                                              for k in METRICS}})
+                                              for k in METRICS}, **ma(on, rp)})
                 log(f"  ablation {added[-1]['name']:34s} beacons "
-                    f"{added[-1]['beacon_err_final']:.2f} m, path {added[-1]['path_rmse']:.2f} m")
+                    f"{added[-1]['beacon_err_final']:.2f} m, path {added[-1]['path_rmse']:.2f} m"
+                    + (f", MA effect "
+                       f"{added[-1]['ma_effect_paired']['beacon_err_final']['mean_diff']:+.2f} m"
+                       if ma_effect else ""))
         rows.append(row)
     return {"scene": scene.name, "particles": particles, "map_adjustment": True,
             "seeds": len(scene.sims),
             "what": "default with MA, one extension off at a time (paired per-seed "
             "differences, 'minus_default' < 0: better without it); extensions off by default "
-            "are listed without numbers. 'added': the paper's set with one extension on",
+            "are listed without numbers. 'added': the paper's set with one extension on. "
+            "Each row's 'ma_effect_paired': that variant with MA minus without MA, same seeds "
+            "(< 0: MA helps), each set at its own p",
             "rows": rows, "added": added}
 
 

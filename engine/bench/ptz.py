@@ -45,9 +45,18 @@ from engine.shared_data import shared_data_dir
 
 HELP = "pan-tilt target tracker (Gaspar 2009): circle scenario, DLT, distortion, chessboard"
 
+#: ablation seeds of the full run (the reported intervals) and of ``--quick``
+FULL_ABLATION_SEEDS = 6
+QUICK_ABLATION_SEEDS = 1
+#: ``--quick``: circle / VISCA loop / calibrated chain length, the paper group's harder cases
+QUICK_DURATION_S = 20.0
+QUICK_HARDER_S = 40.0
+QUICK_ABLATION_SCENARIOS = ("paper_experiment",)
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--duration", type=float, default=60.0, help="circle scenario length (s)")
+    p.add_argument("--duration", type=float, default=None,
+                   help=f"circle scenario length (s; default 60, --quick {QUICK_DURATION_S:.0f})")
     p.add_argument("--period", type=float, default=50.0, help="circle period (s)")
     p.add_argument("--trials", type=int, default=20, help="DLT trials")
     p.add_argument("--data", type=Path, default=None, help="shared data folder")
@@ -59,8 +68,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="skip the published experiment (paper_experiment.*, paper_range.*)")
     p.add_argument("--skip-ablation", action="store_true",
                    help="skip the ablation of the extensions (ablation.*)")
-    p.add_argument("--ablation-seeds", type=int, default=3,
-                   help="image-noise seeds of the ablation (3, 4, ...)")
+    p.add_argument("--ablation-seeds", type=int, default=None,
+                   help=f"image-noise seeds of the ablation (3, 4, ...; default "
+                   f"{FULL_ABLATION_SEEDS}, --quick {QUICK_ABLATION_SEEDS})")
+    p.add_argument("--ablation-scenarios", default=None,
+                   help="comma-separated scenarios of the ablation (default all: "
+                   "paper_experiment, paper_range, harder_30hz, harder_beyond_bank; --quick "
+                   "paper_experiment)")
+    p.add_argument("--quick", action="store_true",
+                   help=f"a check in a few CPU minutes, the same keys: the circle, VISCA loop "
+                   f"and calibrated chain {QUICK_DURATION_S:.0f} s, the paper group's harder "
+                   f"cases {QUICK_HARDER_S:.0f} s, the ablation on {QUICK_ABLATION_SEEDS} seed "
+                   "of the paper's circle (no intervals); without it the full run "
+                   "(the figures the README reports)")
     p.add_argument("--plots", type=Path, default=None, help="folder for PNG plots")
 
 
@@ -338,9 +358,32 @@ def run_pan_tilt_from_points(trials: int = 20) -> dict[str, Any]:
     return {"max_angle_err_deg_median": float(np.median(errs)), "points": 6, "noise_px": 0.5}
 
 
+def _ablation_plan(args: argparse.Namespace) -> tuple[range, list[str] | None]:
+    """Seeds and scenario names of the ablation (module docstring; ``--quick`` reduces)."""
+    from engine.bench.ptz_ablation import scenarios
+    from engine.errors import ParamsError
+
+    n = args.ablation_seeds
+    if n is None:
+        n = QUICK_ABLATION_SEEDS if args.quick else FULL_ABLATION_SEEDS
+    names: list[str] | None = None
+    if args.ablation_scenarios:
+        names = [s.strip() for s in str(args.ablation_scenarios).split(",") if s.strip()]
+        known = list(scenarios())
+        bad = [s for s in names if s not in known]
+        if bad:
+            raise ParamsError(f"--ablation-scenarios: unknown {', '.join(bad)}; available: "
+                              f"{', '.join(known)}")
+    elif args.quick:
+        names = list(QUICK_ABLATION_SCENARIOS)
+    return range(3, 3 + max(1, int(n))), names
+
+
 def run(args: argparse.Namespace) -> dict[str, Any]:
     data = args.data or shared_data_dir()
-    out: dict[str, Any] = {}
+    if args.duration is None:
+        args.duration = QUICK_DURATION_S if args.quick else 60.0
+    out: dict[str, Any] = {"run": {"quick": bool(args.quick), "duration_s": args.duration}}
     if not args.skip_circle:
         log(f"circle scenario: {args.duration:.0f} s, period {args.period:.0f} s")
         out["circle"] = run_circle(args.duration, args.period)
@@ -370,15 +413,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if not args.skip_paper:
         from engine.bench import ptz_paper
 
-        groups, files = ptz_paper.run(args.plots)
+        groups, files = ptz_paper.run(args.plots,
+                                      harder_duration_s=QUICK_HARDER_S if args.quick else None)
         out.update(groups)
         out["plots"] = {"files": files}
     if not args.skip_ablation:
         from engine.bench import ptz_ablation
 
+        seeds, names = _ablation_plan(args)
         log(f"ablation: each extension off in the default set, on in the paper set, "
-            f"{args.ablation_seeds} seeds")
-        out["ablation"] = ptz_ablation.ablation(seeds=range(3, 3 + max(1, args.ablation_seeds)))
+            f"{len(seeds)} seeds, {', '.join(names or ['all scenarios'])}")
+        out["ablation"] = ptz_ablation.ablation(names, seeds=seeds)
         if args.plots is not None:
             out.setdefault("plots", {"files": []})["files"].append(
                 ptz_ablation.plot(out["ablation"], Path(args.plots)))

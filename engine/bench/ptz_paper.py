@@ -147,8 +147,10 @@ def range_summary(s: dict[str, F64]) -> dict[str, Any]:
     return out
 
 
-def run(plots: Path | None = None) -> tuple[dict[str, dict[str, Any]], list[str]]:
-    """All the paper-experiment groups (``paper_experiment`` ...) and the PNGs written."""
+def run(plots: Path | None = None, harder_duration_s: float | None = None
+        ) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """All the paper-experiment groups (``paper_experiment`` ...) and the PNGs written; the
+    harder cases shortened to ``harder_duration_s`` if given (``bench ptz --quick``)."""
     from engine.ptz.paper_sim import PAPER_OMEGA_RAD_S, paper_circle, paper_range
     from engine.trackers.ptz import PtzParams
 
@@ -199,8 +201,9 @@ def run(plots: Path | None = None) -> tuple[dict[str, dict[str, Any]], list[str]
                                 .items() if k in ("pos_err_m_steady", "true_model_prob_final",
                                                   "model_probs_final", "omega_est_final_rad_s")}
     # harder cases, our default
-    fast = dataclasses.replace(circle, fps=30.0)
-    log("harder: the paper's circle at 30 Hz (default set)")
+    fast = dataclasses.replace(circle, fps=30.0,
+                               duration_s=harder_duration_s or circle.duration_s)
+    log(f"harder: the paper's circle at 30 Hz, {fast.duration_s:.0f} s (default set)")
     s30 = track(fast, params_for("default", fast))
     out["harder_30hz"] = summary(s30, params_for("default", fast).omegas, PAPER_OMEGA_RAD_S)
     beyond = dataclasses.replace(fast, period_s=1.0 / 0.08, radius_m=1.2)

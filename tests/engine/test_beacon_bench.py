@@ -43,5 +43,10 @@ def test_bench_beacon_json_keys(capsys: pytest.CaptureFixture[str], tmp_path: Pa
     assert "default (all on)" in rows
     assert "minus_default" in rows["without robust_weighting"]
     assert res["ablation"]["added"][0]["name"] == "paper (all off)"
+    # MA's own effect in every variant (which extension takes over what MA does)
+    for r in [*res["ablation"]["rows"], *res["ablation"]["added"]]:
+        if "beacon_err_final" in r:
+            eff = r["ma_effect_paired"]["beacon_err_final"]
+            assert eff["ci95"][0] <= eff["mean_diff"] <= eff["ci95"][1]
     for png in res["plots"]:
         assert Path(png).stat().st_size > 1000

@@ -88,3 +88,27 @@ def test_ablation_rows_are_paired_per_seed_differences() -> None:
     moments = next(r for r in s["rows"] if r.get("extension") == "moments_centre")
     assert moments["minus_default"]["pos_err_m_steady"]["mean_diff"] > 0.0
     assert all(math.isfinite(r["pos_err_m_steady"]) for r in s["rows"] + s["added"])
+
+
+def test_bench_ptz_quick_plan_and_bad_scenario() -> None:
+    """``--quick`` reduces the ablation to one seed of the paper's circle; the full run keeps
+    every scenario and its seeds; an unknown scenario is one line naming it."""
+    import argparse
+
+    from engine.bench import ptz
+    from engine.errors import ParamsError
+
+    parser = argparse.ArgumentParser()
+    ptz.add_arguments(parser)
+    seeds, names = ptz._ablation_plan(parser.parse_args(["--quick"]))
+    assert list(seeds) == [3]
+    assert names == ["paper_experiment"]
+    seeds, names = ptz._ablation_plan(parser.parse_args([]))
+    assert len(seeds) == ptz.FULL_ABLATION_SEEDS >= 5
+    assert names is None
+    seeds, names = ptz._ablation_plan(parser.parse_args(
+        ["--quick", "--ablation-seeds", "2", "--ablation-scenarios", "paper_range"]))
+    assert list(seeds) == [3, 4]
+    assert names == ["paper_range"]
+    with pytest.raises(ParamsError, match="unknown nope; available: paper_experiment"):
+        ptz._ablation_plan(parser.parse_args(["--ablation-scenarios", "paper_range,nope"]))
