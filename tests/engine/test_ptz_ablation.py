@@ -104,7 +104,7 @@ def test_bench_ptz_quick_plan_and_bad_scenario() -> None:
     assert list(seeds) == [3]
     assert names == ["paper_experiment"]
     seeds, names = ptz._ablation_plan(parser.parse_args([]))
-    assert len(seeds) == ptz.FULL_ABLATION_SEEDS >= 5
+    assert len(seeds) == ptz.FULL_ABLATION_SEEDS >= 4
     assert names is None
     seeds, names = ptz._ablation_plan(parser.parse_args(
         ["--quick", "--ablation-seeds", "2", "--ablation-scenarios", "paper_range"]))
