@@ -66,6 +66,7 @@ FINE: tuple[Knob, ...] = (
     Knob("fit_width", (True, False), start=True),
     Knob("fit_width_max_frac", (1.6, 2.2), start=2.2),
     Knob("mode_seek", (False, True), start=False),
+    Knob("trajectory_share", (0.0, 0.2), start=0.0),
 )
 
 

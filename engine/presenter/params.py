@@ -22,7 +22,8 @@ PAPER_PRESET = Preset(
     "Pmin = 10 % of Pref",
     velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, mode_seek=False, model_update_rate=0.0,
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
-    loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100)
+    loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100,
+    trajectory_share=0.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,6 +45,13 @@ class PresenterParams(Params):
                                  help="drift of the prediction: this fraction of the estimate's "
                                  "smoothed velocity is added to eq. (1)'s random walk (0 = the "
                                  "paper's pure random walk)")
+    trajectory_share: float = param(0.0, lo=0.0, hi=0.5, step=0.05,
+                                    help="identity by trajectory (engine.presenter."
+                                    "trajectory): while the estimate moves faster than a "
+                                    "person can change speed, this share of the particles is "
+                                    "drawn where the presenter's last plausible motion leads "
+                                    "(a look-alike crossing does not drag the track away); "
+                                    "0 = off")
     fit_width: bool = param(True,
                             help="output box width (and centre) from the foreground/background "
                             "colour extent around the estimate, for a full-body model (first box "

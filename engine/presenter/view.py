@@ -35,6 +35,9 @@ Beyond the paper (each switchable, measured in ``studiotrack bench presenter``):
 - scale: the state's h follows a random walk (eq. 1, ``sigma_h_frac``); histograms alone
   barely constrain it (a smaller box inside the person matches as well), so the colour
   likelihood also penalises target colours in a ring around the box (``ring_weight``);
+- identity by trajectory (``trajectory_share``, ``engine.presenter.trajectory``): while the
+  estimate accelerates faster than a person can (dragged onto a look-alike), a share of the
+  particles is drawn where the presenter's last plausible motion leads;
 - output width: for a full-body model (first box >= 2x as tall as wide) the output box's width
   and centre come from ``engine.presenter.extent`` (stride / arm swing); the state stays
   (x, y, h) with the first frame's aspect ratio.
@@ -72,6 +75,7 @@ from engine.presenter.likelihood import (
 )
 from engine.presenter.model import PatchModel
 from engine.presenter.params import PresenterParams
+from engine.presenter.trajectory import Trajectory
 
 F64 = NDArray[np.float64]
 
@@ -143,6 +147,7 @@ class ViewTracker:
         self._below = 0
         self._n_frames = 0
         self._vel_xy = np.zeros(2)
+        self.trajectory = Trajectory()
         self._box_dx_w: tuple[float, float] | None = None  # smoothed centre offset, width
         self._prev_mean: F64 | None = None
         self._p_boot: list[float] = []
@@ -416,6 +421,14 @@ class ViewTracker:
                                         self.h_limits)
             # constant-velocity drift on top of eq. (1)'s random walk
             self.particles[:, :2] += p.velocity_gain * self._vel_xy
+            n_traj = round(p.trajectory_share * p.n_particles)
+            pred = self.trajectory.predicted() if self.trajectory.coasting else None
+            if pred is not None and n_traj > 0:
+                # the estimate's motion was implausible: search where the presenter's went
+                at = self.rng.choice(p.n_particles, n_traj, replace=False)
+                self.particles[at] = pf.gaussian_cloud(
+                    np.array([pred[0], pred[1], h_ref]), self.sigma_xyh(h_ref), n_traj,
+                    self.rng)
         else:
             # search: half a fresh diffuse prior, half resampled from the last search
             n = p.reinit_particles
@@ -523,6 +536,10 @@ class ViewTracker:
         else:
             self._vel_xy[:] = 0.0
             self._prev_mean = None
+        if self.state == TRACKING and p.trajectory_share > 0:
+            self.trajectory.update(mean, self._vel_xy, float(mean[2]))
+        else:
+            self.trajectory.reset()
         if self.state == TRACKING:
             self.jitter.configure(p.jitter_cutoff_hz, self._fps())
             filtered = self.jitter(mean)
