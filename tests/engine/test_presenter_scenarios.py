@@ -95,3 +95,36 @@ def test_motion_cue_keeps_a_box_split_model_through_a_side_lit_walk(
     on = runner(loss_motion=0.1, loss_contrast=0.5)
     assert sc.walk_false_lost(off, "check_light")["false_lost_frames"] > 10
     assert sc.walk_false_lost(on, "check_light")["false_lost_frames"] == 0
+
+
+def test_check_scenarios_are_apart_from_the_held_out_ones_and_include_a_light_ramp() -> None:
+    import re
+
+    def seed(spec: str) -> int:
+        m = re.search(r"seed=(\d+)", spec)
+        assert m is not None, spec
+        return int(m.group(1))
+
+    checks = [sc.DESK[d] for d in sc.CHECK_DESKS] + [sc.WALK[w] for w in sc.CHECK_WALKS]
+    held = list(sc.DESK_HELDOUT) + list(sc.WALK_HELDOUT) + [sc.DESK["report"], sc.WALK["report"]]
+    assert not {seed(s) for s in checks} & {seed(s) for s in held}
+    # the defaults are chosen on a desk whose light comes up while the set is empty
+    assert any("lighting=ramp" in sc.DESK[d] and "presenter_mode=leave" in sc.DESK[d]
+               for d in sc.CHECK_DESKS)
+
+
+def test_distractor_reports_the_defaults_stolen_frames_over_seeds(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import argparse
+
+    from engine.bench import presenter as bp
+
+    monkeypatch.setattr(sc, "DISTRACTOR", {"tiny": TINY + "seed=6,person2=behind,person2_look=0"})
+    monkeypatch.setitem(sc.N_FRAMES, "distractor", 8)
+    out = bp._distractor(argparse.Namespace(particles=30))
+    over = out["tiny"]["presenter"]["stolen_frames_over_seeds"]
+    assert over["seeds"] == list(bp.DISTRACTOR_SEEDS)
+    assert len(over["stolen_frames"]) == len(bp.DISTRACTOR_SEEDS)
+    assert over["stolen_frames"][0] == out["tiny"]["presenter"]["stolen_frames"]
+    assert over["max"] == max(over["stolen_frames"])
+    assert "stolen_frames_over_seeds" not in out["tiny"]["paper"]
