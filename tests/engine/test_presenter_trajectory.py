@@ -27,7 +27,8 @@ def test_a_steady_walk_never_coasts_and_the_track_learns_its_speed() -> None:
     assert t.coasting == 0
     assert abs(t.vel[0] - 6.0) < 0.2
     pred = t.predicted()
-    assert pred is not None and abs(pred[0] - (100.0 + 41 * 6.0)) < 2.0
+    assert pred is not None
+    assert abs(pred[0] - (100.0 + 41 * 6.0)) < 2.0
 
 
 def test_an_estimate_dragged_the_other_way_coasts_on_the_presenters_motion() -> None:
@@ -64,7 +65,8 @@ def test_coasting_ends_when_the_estimate_is_back_on_the_path_or_after_a_while() 
         t.update(np.array([stop, 200.0]), np.array([0.0, 0.0]), H)
     assert t.coasting == 0
     p2 = t.predicted()
-    assert p2 is not None and abs(p2[0] - stop) < 1.0
+    assert p2 is not None
+    assert abs(p2[0] - stop) < 1.0
 
 
 def test_no_coasting_before_the_track_is_trusted() -> None:
