@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import queue
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -58,9 +57,6 @@ _THREADS: list[QThread] = []
 
 #: light history kept per run for plots (a page hidden this long catches up when shown)
 TRACE_SIZE = 2048
-#: the interpreter's thread switch interval while a run is on (default 5 ms): the engine and
-#: sender threads get the interpreter back within 1 ms of the GUI thread's Python drawing
-SWITCH_INTERVAL_S = 0.001
 #: a run's status is recomputed at most this often for the window (percentiles, health)
 STATUS_MAX_AGE_S = 0.1
 
@@ -363,8 +359,6 @@ class RunOwner(QObject):
         if self._view_publish is not None and _outputs_pose(request.tracker):
             self._view_sink = ViewFeedSink(self._view_publish)
             sinks.append(self._view_sink)
-        if sys.getswitchinterval() > SWITCH_INTERVAL_S:
-            sys.setswitchinterval(SWITCH_INTERVAL_S)
         thread = RunThread(self._run_id, request, sinks, self._commands, self._open_source,
                            self._create_tracker, self.source_setup)
         thread.opened.connect(self._on_opened)
@@ -444,6 +438,13 @@ class RunOwner(QObject):
         """The pose outputs' health while a run feeds them (None: off or no run)."""
         sink = self._pose_sink
         return sink.health() if sink is not None and self.is_running else None
+
+    def priorities(self) -> dict[str, dict[str, object]]:
+        """The OS priorities the current run's threads got (engine, output sender)."""
+        p = self.pipeline
+        if p is None:
+            return {}
+        return {name: g.to_json_dict() for name, g in dict(p.priorities).items()}
 
     def output_stats(self) -> Any:
         sink = self._pose_sink

@@ -49,6 +49,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from engine.frames import FramePayload
+from engine.realtime import (
+    PriorityGrant,
+    freeze_heap,
+    raise_priority,
+    run_queue_s,
+    thaw_heap,
+    use_air_switch_interval,
+)
 from engine.records import AddSink, Command, FrameRecord, RemoveSink, ResetTracker, SetParams
 from engine.results import TrackDetails, Tracker, TrackResult, TrackState
 from engine.sources.base import Source
@@ -56,6 +64,9 @@ from engine.timecode import TimecodeClock, nearest_rate
 
 T = TypeVar("T")
 
+#: a real-time run's engine thread asks for this nice value (refused without the right to:
+#: reported, never an error)
+ENGINE_NICE = -5
 #: how often the engine thread looks at the sinks' health for events (s)
 HEALTH_POLL_S = 0.25
 #: a real-time run is "falling behind" when its rate over the last second is below this
@@ -230,6 +241,31 @@ class RunStatus:
     timecode: str | None = None
 
 
+@dataclass(frozen=True, slots=True)
+class FrameTiming:
+    """Where the engine thread's time went for one frame (ms; NaN where unknown).
+
+    ``pace_overshoot_ms``: woke after the frame's pacing slot (real time; 0 when it did
+    not sleep); ``source_wait_ms``: waiting for the source's next frame (the render-ahead
+    thread, a camera); ``track_ms``/``track_cpu_ms``: the tracker's wall and CPU time, of
+    which ``track_run_queue_ms`` runnable without a CPU (the OS) and ``track_gil_ms`` the
+    rest (blocked: the interpreter lock held by another thread); ``sinks_ms``: handing the
+    record to the sinks.
+    """
+
+    seq: int
+    pace_overshoot_ms: float
+    source_wait_ms: float
+    track_ms: float
+    track_cpu_ms: float
+    track_run_queue_ms: float
+    sinks_ms: float
+
+    @property
+    def track_gil_ms(self) -> float:
+        return max(0.0, self.track_ms - self.track_cpu_ms - self.track_run_queue_ms)
+
+
 # ------------------------------------------------------------------------- mailbox
 class Mailbox(Generic[T]):
     """Holds the latest item; ``put`` never waits, replacing an untaken item counts a drop."""
@@ -380,8 +416,18 @@ class Pipeline:
         clock: Callable[[], float] = time.monotonic,
         sleep: Callable[[float], None] = time.sleep,
         timecode: TimecodeClock | None = None,
+        freeze_gc: bool | None = None,
     ) -> None:
         self.source = source
+        #: freeze the heap from the first frame to the end of the run
+        #: (:func:`engine.realtime.freeze_heap`); None = in real-time runs (on air), where a
+        #: full collection (30-110 ms holding the interpreter) would stall the outputs
+        self.freeze_gc = bool(realtime) if freeze_gc is None else freeze_gc
+        self.gc_frozen: int | None = None  # objects frozen at the first frame (None: not)
+        self._thawed = False
+        #: the OS priorities the run's threads got: "engine" (real time), and each sink's
+        #: own thread that reports one (a ``priority`` :class:`PriorityGrant` attribute)
+        self.priorities: dict[str, PriorityGrant] = {}
         self.tracker = tracker
         self.realtime = bool(realtime)
         self.max_frames = max_frames
@@ -425,6 +471,8 @@ class Pipeline:
         self._tracker_ms: collections.deque[float] = collections.deque(maxlen=600)
         self._cap_done_ms: collections.deque[float] = collections.deque(maxlen=600)
         self._next_health = 0.0
+        #: the engine thread's timing of the last frames (:class:`FrameTiming`)
+        self.frame_timings: collections.deque[FrameTiming] = collections.deque(maxlen=4096)
 
     # ------------------------------------------------------------------ control
     def send(self, command: Command) -> None:
@@ -538,12 +586,27 @@ class Pipeline:
             slot.opened = True
         except Exception as exc:
             self._fail_slot(slot, "open", exc)
+            return
+        grant = getattr(slot.sink, "priority", None)
+        if isinstance(grant, PriorityGrant):
+            self._note_priority(slot.name, grant)
 
     def _open_sinks(self) -> None:
         for slot in list(self._slots):
             self._open_slot(slot)
+        if self.realtime:
+            use_air_switch_interval()
+            self._note_priority("engine", raise_priority("engine", nice=ENGINE_NICE))
+
+    def _note_priority(self, name: str, grant: PriorityGrant) -> None:
+        with self._lock:
+            self.priorities[name] = grant
+        self._event("info", "engine", grant.line())
 
     def _close_sinks(self) -> None:
+        if self.gc_frozen is not None and not self._thawed:
+            self._thawed = True
+            thaw_heap()
         with self._lock:
             self._phase = RunPhase.ENDED
             slots = list(self._slots)
@@ -632,6 +695,8 @@ class Pipeline:
     def _loop(self, should_stop: Callable[[], bool]) -> Iterator[FrameRecord]:
         period = (1.0 / self.info.nominal_fps
                   if self.realtime and self.info.nominal_fps > 0 else 0.0)
+        if self.freeze_gc and self.gc_frozen is None:
+            self.gc_frozen = freeze_heap()
         with self._lock:
             self._phase = RunPhase.RUNNING
         frames = iter(self.source.frames())
@@ -649,24 +714,31 @@ class Pipeline:
                 return
             self._apply_commands()
             late_s = 0.0
+            overshoot_ms = 0.0
             if period:
                 due = anchor + k * period
                 now = self._clock()
+                slept = False
                 while due - now > 0 and not should_stop():
                     self._sleep(min(due - now, 0.05))
                     now = self._clock()
+                    slept = True
                 late_s = max(0.0, now - due)
+                if slept:
+                    overshoot_ms = late_s * 1000.0
                 if late_s > period:
                     # more than a frame behind: measured, not made up by rushing
                     with self._lock:
                         self._late += 1
                     anchor, k = now, 0
+            w0 = time.perf_counter()
             try:
                 frame = next(frames)
             except StopIteration:
                 return
             k += 1
             t0 = time.perf_counter()
+            rq0 = run_queue_s()
             c0 = time.thread_time()
             if frame.link_lost_reason is not None:
                 # a live source without a picture (device gone): LOST, the tracker not called
@@ -676,6 +748,7 @@ class Pipeline:
                 last_good = result
             c1 = time.thread_time()
             t1 = time.perf_counter()
+            rq1 = run_queue_s()
             done = self._clock()
             if frame.skipped_before:
                 skips.append((done, frame.skipped_before))
@@ -699,6 +772,11 @@ class Pipeline:
                         slot.sink.on_record(rec)
                     except Exception as exc:
                         self._fail_slot(slot, "on_record", exc)
+            self.frame_timings.append(FrameTiming(
+                seq=seq, pace_overshoot_ms=overshoot_ms, source_wait_ms=(t0 - w0) * 1000.0,
+                track_ms=rec.process_ms, track_cpu_ms=rec.cpu_ms,
+                track_run_queue_ms=(rq1 - rq0) * 1000.0,
+                sinks_ms=(time.perf_counter() - t1) * 1000.0))
             self.mailbox.put(rec)
             self.trace.append(TraceSample.of(rec))
             with self._lock:

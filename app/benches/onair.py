@@ -23,8 +23,10 @@ the window within 1.3x headless, the source's rate sustained.
 from __future__ import annotations
 
 import argparse
+import itertools
 import socket
 import statistics
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -126,6 +128,10 @@ class OnAirResult:
     tick_ms: list[float] = field(default_factory=list)
     cpu_s: dict[str, float] = field(default_factory=dict)
     alarms: list[str] = field(default_factory=list)
+    slot_timings: list[Any] = field(default_factory=list)  # engine.outputs.sender.SlotTiming
+    frame_timings: list[Any] = field(default_factory=list)  # engine.pipeline.FrameTiming
+    switch_interval_s: float = float("nan")
+    priorities: dict[str, Any] = field(default_factory=dict)
 
 
 def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
@@ -189,8 +195,11 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
         ids["render"] = next((t.native_id for t in threading.enumerate()
                               if t.name == "studio-render-ahead"), None)
         times = {t.id: t.user_time + t.system_time for t in psutil.Process().threads()}
-        return {k: times.get(v, float("nan")) if v is not None else float("nan")
-                for k, v in ids.items()}
+        out = {k: times.get(v, float("nan")) if v is not None else float("nan")
+               for k, v in ids.items()}
+        # every other thread of the process (numba's pool, Qt's, the receivers)
+        out["other"] = sum(c for tid, c in times.items() if tid not in ids.values())
+        return out
 
     def begin() -> None:
         marks["t0"] = time.monotonic()
@@ -220,6 +229,14 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
             cpu1 = cpu_by_thread()
             state["cpu_s"] = {k: cpu1[k] - state["cpu0"][k] for k in cpu1}
             state["stats"] = ctx.run.output_stats()
+            sink = ctx.run._pose_sink
+            out = sink.outputs if sink is not None else None
+            state["slots"] = [] if out is None else [
+                t for t in list(out.slot_timings) if marks["t0"] <= t.sent_s <= marks["t1"]]
+            first = samples[0].seq if samples else 0
+            state["ftimes"] = [t for t in list(p.frame_timings) if t.seq >= first]
+            state["switch"] = sys.getswitchinterval()
+            state["prio"] = ctx.run.priorities()
             state["alarms"] = [e.message for e in ctx.log.entries() if e.level >= 40]
         except Exception as exc:
             state["error"] = f"{type(exc).__name__}: {exc}"
@@ -281,6 +298,10 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
         alarms=state.get("alarms", []),
         tick_ms=state.get("tick_ms", []),
         cpu_s=state.get("cpu_s", {}),
+        slot_timings=state.get("slots", []),
+        frame_timings=state.get("ftimes", []),
+        switch_interval_s=state.get("switch", float("nan")),
+        priorities=state.get("prio", {}),
     )
 
 
@@ -340,6 +361,103 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
         "lost_slots": None if st is None else st.lost_ticks,
         "missed_slots": None if st is None else st.missed_ticks,
         "errors_logged": res.alarms[:5],
+        "switch_interval_s": res.switch_interval_s,
+        "thread_priorities": res.priorities,
+        "send_timing": send_timing(res.slot_timings, period_ms),
+        "engine_timing": engine_timing(res.frame_timings),
+    }
+
+
+def _pct(values: list[float]) -> dict[str, float | None]:
+    a = np.asarray([v for v in values if v == v], dtype=np.float64)
+    if a.size == 0:
+        return {"p50": None, "p95": None, "max": None}
+    p50, p95 = np.percentile(a, [50, 95])
+    return {"p50": round(float(p50), 3), "p95": round(float(p95), 3),
+            "max": round(float(a.max()), 3)}
+
+
+def send_timing(slots: list[Any], period_ms: float) -> dict[str, Any]:
+    """Where the sender's time went, slot by slot (:class:`engine.outputs.sender.SlotTiming`).
+
+    ``late_ms``: sent after the slot's due time; ``overshoot_ms``: timer wakes after their
+    deadline, split into ``run_queue_ms`` (runnable without a CPU: the OS) and
+    ``gil_ms`` (the rest: the interpreter lock); ``work_ms``: wake -> packet on the wire;
+    ``late_causes``: for each send more than a quarter period late, the biggest part.
+    The latency parts of the slots that carried a fresh pose: ``capture_to_done_ms`` (the
+    tracker, and its waits), ``done_to_arrival_ms`` (the other sinks, the hand-over),
+    ``arrival_to_send_ms`` (the sender: its wake, or waiting for the slot's window).
+    """
+    if not slots:
+        return {}
+    timer = [s for s in slots if s.by_timer and s.deadline_s == s.deadline_s]
+    over = [s.overshoot_ms for s in timer]
+    rq = [s.run_queue_ms for s in timer]
+    gil = [max(0.0, s.overshoot_ms - (s.run_queue_ms if s.run_queue_ms == s.run_queue_ms
+                                      else 0.0)) for s in timer]
+    work = [(s.sent_s - s.woke_s) * 1000.0 for s in slots if s.woke_s == s.woke_s]
+    causes = {"run_queue": 0, "gil": 0, "work": 0, "fresh_late": 0}
+    late_thr = 0.25 * period_ms
+    late = [s for s in slots if s.late_ms > late_thr]
+    for s in late:
+        if s.by_timer and s.deadline_s == s.deadline_s:
+            o = s.overshoot_ms
+            q = s.run_queue_ms if s.run_queue_ms == s.run_queue_ms else 0.0
+            w = (s.sent_s - s.woke_s) * 1000.0
+            parts = {"run_queue": q, "gil": max(0.0, o - q), "work": w}
+            causes[max(parts, key=lambda k: parts[k])] += 1
+        else:
+            causes["fresh_late"] += 1  # woken by a pose after the due time
+    fresh = [s for s in slots if s.fresh and s.capture_s == s.capture_s and s.capture_s > 0]
+    return {
+        "slots": len(slots),
+        "by_timer": sum(1 for s in slots if s.by_timer),
+        "fresh": len(fresh),
+        "late_ms": _pct([s.late_ms for s in slots]),
+        "late_sends": len(late),
+        "late_threshold_ms": round(late_thr, 3),
+        "late_causes": causes,
+        "overshoot_ms": _pct(over),
+        "run_queue_ms": _pct(rq),
+        "gil_ms": _pct(gil),
+        "work_ms": _pct(work),
+        "capture_to_done_ms": _pct([(s.done_s - s.capture_s) * 1000.0 for s in fresh]),
+        "done_to_arrival_ms": _pct([(s.arrival_s - s.done_s) * 1000.0 for s in fresh]),
+        "arrival_to_send_ms": _pct([(s.sent_s - s.arrival_s) * 1000.0 for s in fresh]),
+        "fresh_sent_by_timer": sum(1 for s in fresh if s.by_timer),
+        "worst_gaps": _worst_gaps(slots, 3),
+    }
+
+
+def _worst_gaps(slots: list[Any], n: int) -> list[dict[str, Any]]:
+    """The ``n`` longest gaps between consecutive sends, each with both slots' timing: a
+    gap is a period plus this slot's lateness minus the previous one's."""
+    rows = []
+    for a, b in itertools.pairwise(slots):
+        rows.append({
+            "gap_ms": round((b.sent_s - a.sent_s) * 1000.0, 3),
+            "prev_late_ms": round(a.late_ms, 3), "late_ms": round(b.late_ms, 3),
+            "by_timer": b.by_timer, "fresh": b.fresh,
+            "overshoot_ms": _r(b.overshoot_ms), "run_queue_ms": _r(b.run_queue_ms),
+            "work_ms": _r((b.sent_s - b.woke_s) * 1000.0),
+        })
+    rows.sort(key=lambda r: -r["gap_ms"])
+    return rows[:n]
+
+
+def engine_timing(frames: list[Any]) -> dict[str, Any]:
+    """Where the engine thread's time went per frame (:class:`engine.pipeline.FrameTiming`)."""
+    if not frames:
+        return {}
+    return {
+        "frames": len(frames),
+        "pace_overshoot_ms": _pct([f.pace_overshoot_ms for f in frames]),
+        "source_wait_ms": _pct([f.source_wait_ms for f in frames]),
+        "track_ms": _pct([f.track_ms for f in frames]),
+        "track_cpu_ms": _pct([f.track_cpu_ms for f in frames]),
+        "track_run_queue_ms": _pct([f.track_run_queue_ms for f in frames]),
+        "track_gil_ms": _pct([f.track_gil_ms for f in frames]),
+        "sinks_ms": _pct([f.sinks_ms for f in frames]),
     }
 
 

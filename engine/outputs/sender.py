@@ -16,6 +16,7 @@ the kernel can route it; the bind address is part of each target's statistics.
 
 from __future__ import annotations
 
+import bisect
 import collections
 import contextlib
 import ipaddress
@@ -38,9 +39,16 @@ from engine.outputs.studio_frame import CameraOffset, StudioFrame, StudioPose
 from engine.outputs.talent import TalentPosition, TalentSettings
 from engine.outputs.timing import DelayCompensator, DelayParams
 from engine.params import Params, param
+from engine.realtime import PriorityGrant, raise_priority, run_queue_s
 from engine.timecode import Timecode
 
 PROTOCOLS = ("freed", "opentrackio")
+
+#: the clocked sender thread asks for this real-time priority (SCHED_FIFO; it only wakes
+#: once a slot, ~1 ms of work) and falls back to :data:`SENDER_NICE`; refused without the
+#: right to (an ordinary account, CI): it then runs at the process's priority, reported
+SENDER_FIFO = 10
+SENDER_NICE = -10
 
 
 @dataclass(frozen=True, slots=True)
@@ -243,6 +251,67 @@ class SenderStats:
         }
 
 
+@dataclass(frozen=True, slots=True)
+class SlotTiming:
+    """When one clocked output slot was due, and where the time to its send went
+    (``time.monotonic()`` seconds; NaN where it does not apply).
+
+    ``by_timer``: the sender woke for the slot's due time (held pose, or a fresh one that
+    arrived before the slot's window); else a fresh pose arriving inside the window woke it.
+    ``deadline_s``/``woke_s``: the wake-up it asked for and the moment it ran again, so
+    ``woke_s - deadline_s`` is the sleep overshoot; ``run_queue_ms``: of the wait, the time
+    it was runnable but had no CPU (the OS; :func:`engine.realtime.run_queue_s`) - the rest
+    of an overshoot is waiting for the interpreter lock (another thread held the GIL).
+    ``arrival_s``: the newest pose's submit time; ``capture_s``/``done_s``: its frame's
+    capture and tracker-done times (fresh slots only).
+    """
+
+    due_s: float
+    sent_s: float
+    by_timer: bool
+    fresh: bool
+    deadline_s: float
+    woke_s: float
+    run_queue_ms: float
+    arrival_s: float
+    capture_s: float
+    done_s: float
+
+    @property
+    def late_ms(self) -> float:
+        """Sent after the slot's due time (ms; negative: early, inside the window)."""
+        return (self.sent_s - self.due_s) * 1000.0
+
+    @property
+    def overshoot_ms(self) -> float:
+        """Woke after the deadline it slept for (ms; NaN when woken by a fresh pose)."""
+        return (self.woke_s - self.deadline_s) * 1000.0
+
+
+@dataclass(frozen=True, slots=True)
+class _Planned:
+    """What one clocked slot sends."""
+
+    pose: StudioPose
+    state: str
+    carry: OutputSample  # the sample sent (latency fields cleared for a held slot)
+    stale: bool
+    timecode: Timecode | None
+
+
+@dataclass(frozen=True, slots=True)
+class _Prepared:
+    """A held slot encoded ahead of its due time, and what it assumed."""
+
+    due: float
+    newest: OutputSample
+    cfg: OutputConfig
+    out_seq: int
+    targets: tuple[_Target, ...]
+    plan: _Planned
+    encoded: list[_Encoded]
+
+
 def resolve_target(spec: TargetSpec) -> str:
     """The target's IPv4 address; a host that does not resolve raises one line.
 
@@ -340,8 +409,8 @@ class _Target:
             self.sock = None
 
     def stats(self, now: float) -> TargetStats:
-        times = list(self.send_times)
-        recent = [t for t in times if t > now - 1.0]
+        times = list(self.send_times)  # a copy (the sender thread appends)
+        recent = times[bisect.bisect_right(times, now - 1.0):]
         if len(recent) >= 2:
             rate = (len(recent) - 1) / max(recent[-1] - recent[0], 1e-9)
         else:
@@ -360,6 +429,10 @@ class _Target:
             last_ok_age_s=now - self.last_ok_mono,
             last_error_age_s=now - self.last_error_mono,
         )
+
+
+#: one target's datagrams for a slot, or why they could not be encoded
+_Encoded = tuple["_Target", "list[bytes] | OutputError"]
 
 
 def freed_packet(pose: StudioPose, settings: FreeDSettings, intr: Intrinsics | None,
@@ -391,8 +464,8 @@ def freed_packet(pose: StudioPose, settings: FreeDSettings, intr: Intrinsics | N
     )
 
 
-def _trio(values: collections.deque[float], q: tuple[float, float]) -> tuple[float, float, float]:
-    a = np.fromiter(values, dtype=np.float64)
+def _trio(values: Sequence[float], q: tuple[float, float]) -> tuple[float, float, float]:
+    a = np.asarray(values, dtype=np.float64)
     if a.size == 0:
         return (math.nan, math.nan, math.nan)
     lo, hi = np.percentile(a, q)
@@ -455,6 +528,13 @@ class OutputSet:
         self.held_ticks = 0
         self.lost_ticks = 0
         self._last_tc: Timecode | None = None
+        self._prepared: _Prepared | None = None
+        #: clocked: the OS priority the sender thread got (None before it started)
+        self.priority: PriorityGrant | None = None
+        self._prio_set = threading.Event()
+        self.prepared_used = 0  # clocked slots sent from datagrams encoded ahead
+        #: clocked: the timing of the last slots (:class:`SlotTiming`)
+        self.slot_timings: collections.deque[SlotTiming] = collections.deque(maxlen=4096)
         if start:
             self.start()
 
@@ -472,6 +552,8 @@ class OutputSet:
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name="output-sender", daemon=True)
             self._thread.start()
+            if self.clock is not None:
+                self._prio_set.wait(1.0)  # the grant is known when start() returns
 
     def set_config(self, config: OutputConfig) -> None:
         """Swap in new settings (targets are re-opened if they changed)."""
@@ -581,36 +663,50 @@ class OutputSet:
         return True
 
     def stats(self) -> SenderStats:
+        """A snapshot (any thread). The sender's lock is held only to copy the counters and
+        histories: the percentiles are computed after, so a window asking for statistics
+        never delays a send."""
         now = time.monotonic()
         with self._cond:
-            lat = np.fromiter(self._latency_ms, dtype=np.float64)
-            p50, p95 = np.percentile(lat, [50, 95]) if lat.size else (np.nan, np.nan)
             clk = self.clock
-            return SenderStats(
-                latency_p50_ms=float(p50),
-                latency_p95_ms=float(p95),
-                submitted=self.submitted,
-                dropped=self.dropped,
-                processed=self.processed,
-                skipped_no_pose=self.skipped_no_pose,
-                encode_errors=self.encode_errors,
-                last_encode_error=self.last_encode_error,
-                targets=tuple(t.stats(now) for t in self._targets),
-                clocked=clk is not None,
-                rate_hz=self._rate_hz,
-                ticks=self.ticks,
-                held_ticks=self.held_ticks,
-                lost_ticks=self.lost_ticks,
-                missed_ticks=0 if clk is None else clk.missed,
-                capture_to_send_ms=_trio(self._cap_send_ms, (50, 95)),
-                done_to_send_ms=_trio(self._done_send_ms, (50, 95)),
-                send_gap_ms=_trio(self._gaps_ms, (50, 99)),
-            )
+            counters = (self.submitted, self.dropped, self.processed, self.skipped_no_pose,
+                        self.encode_errors, self.last_encode_error, self._rate_hz, self.ticks,
+                        self.held_ticks, self.lost_ticks, 0 if clk is None else clk.missed)
+            targets = list(self._targets)
+            lat_ms = list(self._latency_ms)
+            cap, done = list(self._cap_send_ms), list(self._done_send_ms)
+            gaps = list(self._gaps_ms)
+        (submitted, dropped, processed, skipped, enc_errors, last_enc, rate, ticks, held,
+         lost, missed) = counters
+        lat = np.asarray(lat_ms, dtype=np.float64)
+        p50, p95 = np.percentile(lat, [50, 95]) if lat.size else (np.nan, np.nan)
+        return SenderStats(
+            latency_p50_ms=float(p50),
+            latency_p95_ms=float(p95),
+            submitted=submitted,
+            dropped=dropped,
+            processed=processed,
+            skipped_no_pose=skipped,
+            encode_errors=enc_errors,
+            last_encode_error=last_enc,
+            targets=tuple(t.stats(now) for t in targets),
+            clocked=clk is not None,
+            rate_hz=rate,
+            ticks=ticks,
+            held_ticks=held,
+            lost_ticks=lost,
+            missed_ticks=missed,
+            capture_to_send_ms=_trio(cap, (50, 95)),
+            done_to_send_ms=_trio(done, (50, 95)),
+            send_gap_ms=_trio(gaps, (50, 99)),
+        )
 
     # -- consumer side (sender thread) -----------------------------------------------------
 
     def _run(self) -> None:
         if self.clock is not None:
+            self.priority = raise_priority("output sender", fifo=SENDER_FIFO, nice=SENDER_NICE)
+            self._prio_set.set()
             self._run_clocked()
             return
         while True:
@@ -675,10 +771,17 @@ class OutputSet:
     def _emit(self, pose: StudioPose, state: str, sample: OutputSample, cfg: OutputConfig,
               targets: Sequence[_Target]) -> None:
         """Encode once per protocol/encoding and send to every target."""
+        seq = sample.seq if self.clock is None else self._out_seq
+        wall = (sample.wall_time_s if self.clock is None else 0.0) or time.time()
+        self._send(self._encode(pose, state, sample, cfg, targets, seq, wall), sample)
+
+    def _encode(self, pose: StudioPose, state: str, sample: OutputSample, cfg: OutputConfig,
+                targets: Sequence[_Target], seq: int, wall_s: float) -> list[_Encoded]:
+        """Every target's datagrams for one pose (or the encode error), sending nothing: the
+        OpenTrackIO packet sequence numbers are the targets' next ones."""
         freed_bytes: bytes | None = None
         otio_payloads: dict[str, bytes] = {}
-        seq = sample.seq if self.clock is None else self._out_seq
-        self._out_seq += 1
+        out: list[_Encoded] = []
         for t in targets:
             try:
                 if t.spec.protocol == "freed":
@@ -691,7 +794,7 @@ class OutputSet:
                         else:
                             freed_bytes = freed_packet(pose, cfg.freed, sample.intrinsics,
                                                        cfg.lens, sample.lens)
-                    t.send([freed_bytes])
+                    out.append((t, [freed_bytes]))
                 else:
                     enc = t.spec.encoding
                     if enc not in otio_payloads:
@@ -699,8 +802,7 @@ class OutputSet:
                             otio.SampleInputs(
                                 pose=pose,
                                 status=state,
-                                timestamp_s=(sample.wall_time_s if self.clock is None
-                                             else 0.0) or time.time(),
+                                timestamp_s=wall_s,
                                 sequence_number=seq,
                                 sample_rate_hz=self._rate_hz,
                                 intrinsics=(sample.intrinsics if sample.subject == "camera"
@@ -712,14 +814,25 @@ class OutputSet:
                             )
                         )
                         otio_payloads[enc] = otio.encode_payload(sample_dict, enc)
-                    t.send(otio.build_packets(otio_payloads[enc], t.otio_seq, enc))
-                    t.otio_seq = (t.otio_seq + 1) & 0xFFFF
+                    out.append((t, otio.build_packets(otio_payloads[enc], t.otio_seq, enc)))
             except OutputError as exc:
+                out.append((t, exc))
+        return out
+
+    def _send(self, encoded: Sequence[_Encoded], sample: OutputSample) -> None:
+        """Put encoded datagrams on the wire (errors counted per target) and count the send."""
+        for t, packets in encoded:
+            if isinstance(packets, OutputError):
                 self.encode_errors += 1
-                self.last_encode_error = str(exc)
+                self.last_encode_error = str(packets)
                 t.errors += 1
-                t.last_error = f"{t.spec.name}: {exc}"
+                t.last_error = f"{t.spec.name}: {packets}"
                 t.last_error_mono = time.monotonic()
+                continue
+            t.send(packets)
+            if t.spec.protocol == "opentrackio":
+                t.otio_seq = (t.otio_seq + 1) & 0xFFFF
+        self._out_seq += 1
         now = time.monotonic()
         self.ticks += 1
         if self._last_emit_mono is not None:
@@ -733,7 +846,9 @@ class OutputSet:
     def _run_clocked(self) -> None:
         clock = self.clock
         assert clock is not None
+        nan = math.nan
         while True:
+            deadline = woke = rq = nan
             with self._cond:
                 while True:
                     if self._stop:
@@ -744,7 +859,11 @@ class OutputSet:
                     wake = clock.wake_at()
                     if wake is not None and now >= wake:
                         break
+                    rq0 = run_queue_s()
                     self._cond.wait(None if wake is None else max(0.0, wake - now))
+                    woke = time.monotonic()
+                    rq = (run_queue_s() - rq0) * 1000.0
+                    deadline = nan if wake is None or self._queue else wake
                 samples = list(self._queue)
                 self._queue.clear()
                 self._busy = True
@@ -764,8 +883,19 @@ class OutputSet:
                         self.skipped_no_pose += 1
                     self.processed += 1
                 if self._newest is not None and clock.should_fire(now, arrived):
+                    due = clock.due
+                    fresh = self._fresh
+                    newest = self._newest
                     self._tick(now, cfg, targets, faulted)
                     clock.fired(now)
+                    self._prepare(cfg, targets, faulted)
+                    self.slot_timings.append(SlotTiming(
+                        due_s=nan if due is None else due,
+                        sent_s=self._last_emit_mono or now, by_timer=not arrived,
+                        fresh=fresh, deadline_s=deadline, woke_s=woke, run_queue_ms=rq,
+                        arrival_s=self._newest_arrival,
+                        capture_s=newest.capture_mono_s if fresh else nan,
+                        done_s=newest.done_mono_s if fresh else nan))
             except Exception as exc:  # never let one bad sample kill the sender
                 self.encode_errors += 1
                 self.last_encode_error = f"{type(exc).__name__}: {exc}"
@@ -774,9 +904,9 @@ class OutputSet:
                     self._busy = False
                     self._cond.notify_all()
 
-    def _tick(self, now: float, cfg: OutputConfig, targets: Sequence[_Target],
-              faulted: bool) -> None:
-        """One clocked slot: the newest pose, held when not fresh, LOST when stale/faulted."""
+    def _plan(self, now: float, faulted: bool) -> _Planned:
+        """What the slot firing at ``now`` sends: the newest pose, held when not fresh,
+        LOST when stale or faulted (nothing is changed)."""
         newest = self._newest
         assert newest is not None
         stale = faulted or now - self._newest_arrival > self.stale_after_s
@@ -789,10 +919,6 @@ class OutputSet:
             timed = self._comp.value(newest.timestamp_s, min(lead, self.clock_period))
             state = newest.state
         assert timed is not None
-        if not self._fresh:
-            self.held_ticks += 1
-        if stale:
-            self.lost_ticks += 1
         # latency is counted once, for the slot that carried the fresh pose; a held slot is the
         # next video frame: its timecode counts on from the last one sent
         tc = newest.timecode
@@ -801,9 +927,48 @@ class OutputSet:
         carry = newest if self._fresh else replace(newest, capture_mono_s=0.0, done_mono_s=0.0)
         if tc is not carry.timecode:
             carry = replace(carry, timecode=tc)
-        self._last_tc = tc
-        self._emit(timed.pose, state, carry, cfg, targets)
+        return _Planned(timed.pose, state, carry, stale, tc)
+
+    def _tick(self, now: float, cfg: OutputConfig, targets: Sequence[_Target],
+              faulted: bool) -> None:
+        """One clocked slot: the prepared datagrams when the slot is the held one they were
+        made for, else planned and encoded now."""
+        ready = self._prepared
+        self._prepared = None
+        stale = faulted or now - self._newest_arrival > self.stale_after_s
+        if (ready is not None and not self._fresh and ready.newest is self._newest
+                and ready.cfg is cfg and ready.out_seq == self._out_seq
+                and ready.plan.stale == stale and ready.targets == tuple(targets)
+                and ready.due == (self.clock.due if self.clock is not None else None)):
+            plan, encoded = ready.plan, ready.encoded
+            self.prepared_used += 1
+        else:
+            plan = self._plan(now, faulted)
+            encoded = self._encode(plan.pose, plan.state, plan.carry, cfg, targets,
+                                   self._out_seq, time.time())
+        if not self._fresh:
+            self.held_ticks += 1
+        if plan.stale:
+            self.lost_ticks += 1
+        self._last_tc = plan.timecode
+        self._send(encoded, plan.carry)
         self._fresh = False
+
+    def _prepare(self, cfg: OutputConfig, targets: Sequence[_Target], faulted: bool) -> None:
+        """Encode the next slot as a held one ahead of time (it fires by the timer when no
+        fresh pose comes): at its due time the sender then only puts bytes on the wire,
+        so a late wake-up (another thread holding the interpreter) costs the send nothing
+        more. A fresh pose, a new configuration or a fault discards it."""
+        clock = self.clock
+        if clock is None or clock.due is None or self._newest is None or self._fresh:
+            return
+        due = clock.due
+        plan = self._plan(due, faulted)
+        wall = time.time() + (due - time.monotonic())  # the slot's own time
+        encoded = self._encode(plan.pose, plan.state, plan.carry, cfg, targets,
+                               self._out_seq, wall)
+        self._prepared = _Prepared(due, self._newest, cfg, self._out_seq, tuple(targets),
+                                   plan, encoded)
 
     @property
     def clock_period(self) -> float:

@@ -14,17 +14,13 @@ while on a clocked run is an ALARM too ("stalled").
 from __future__ import annotations
 
 import math
-import sys
 from typing import Any
 
 from engine.outputs.sender import OutputConfig, OutputSet, SenderStats
 from engine.pipeline import LatencyStats, RunInfo, SinkBase, SinkHealth, SinkLevel, TargetHealth
+from engine.realtime import PriorityGrant, use_air_switch_interval
 from engine.records import FrameRecord
 from engine.sinks import SinkSpec
-
-#: GIL switch interval while clocked outputs run: bounds how long the sender thread can wait
-#: for the interpreter while the engine or the GUI run Python code (default 5 ms)
-SWITCH_INTERVAL_S = 0.001
 
 
 class PoseOutputSink(SinkBase):
@@ -49,11 +45,15 @@ class PoseOutputSink(SinkBase):
         clocked = self.clocked if self.clocked is not None else (run.realtime or run.live)
         rate = self.rate_hz or self.config.rate_hz or run.nominal_fps or 30.0
         if clocked:
-            if sys.getswitchinterval() > SWITCH_INTERVAL_S:
-                sys.setswitchinterval(SWITCH_INTERVAL_S)
+            use_air_switch_interval()
             self.outputs = OutputSet(self.config, rate_hz=rate, stale_after_s=self.stale_after_s)
         else:
             self.outputs = OutputSet(self.config)
+
+    @property
+    def priority(self) -> PriorityGrant | None:
+        """The OS priority of the clocked sender thread (logged by the pipeline)."""
+        return self.outputs.priority if self.outputs is not None else None
 
     def on_record(self, record: FrameRecord) -> None:
         if self.outputs is not None:

@@ -28,6 +28,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
 from engine.frames import Frame
+from engine.realtime import lower_priority
 
 #: how often a blocked worker looks whether the consumer has gone (s)
 _POLL_S = 0.05
@@ -44,9 +45,11 @@ _END = object()
 
 
 def read_ahead(make: Callable[[int], Frame], count: int, *, depth: int = 1,
-               name: str = "source-ahead") -> Iterator[Frame]:
+               name: str = "source-ahead", nice: int = 0) -> Iterator[Frame]:
     """``make(0) ... make(count - 1)``, each made on a worker thread up to ``depth`` frames
-    before the consumer asks for it (``depth`` 0: on the caller's thread)."""
+    before the consumer asks for it (``depth`` 0: on the caller's thread). ``nice`` > 0: the
+    worker runs that many nice levels below the process
+    (:func:`engine.realtime.lower_priority`)."""
     if depth <= 0:
         for i in range(count):
             yield make(i)
@@ -64,6 +67,7 @@ def read_ahead(make: Callable[[int], Frame], count: int, *, depth: int = 1,
         return False
 
     def work() -> None:
+        lower_priority(nice)
         try:
             for i in range(count):
                 if stop.is_set() or not put(make(i)):

@@ -362,6 +362,14 @@ def _person2(o: dict[str, Any], presenter: Any, fps: float, wide: bool) -> Any:
                            look=look, enter_from_m=4.6 - 9.2 if start > 0 else None)
 
 
+#: the built-in studio stands in for a camera, whose frames cost the computer nothing: its
+#: render-ahead thread runs this many nice levels below the process, so that the air path's
+#: threads (engine, output sender, window) get a core first whenever they want one (on a
+#: 2-core machine the render, ~17 ms per frame, otherwise delays the tracker by a few ms
+#: every frame); on a free core it renders as fast as before
+RENDER_NICE = 10
+
+
 class SyntheticSource(Source):
     """The built-in virtual studio: RGB-D frames with exact pose, presenter and ball truth."""
 
@@ -414,7 +422,7 @@ class SyntheticSource(Source):
         from engine.sources.ahead import read_ahead
 
         return read_ahead(self.studio.frame, len(self), depth=self.ahead,
-                          name="studio-render-ahead")
+                          name="studio-render-ahead", nice=RENDER_NICE)
 
 
 SOURCES = (

@@ -315,3 +315,35 @@ def test_a_stalled_engine_says_lost_on_its_page_as_in_the_header(qtbot, window, 
     assert header.state == "LOST"
     assert not [t for t in shown if "TRACKING" in t], (title, shown)
     assert any("LOST" in t for t in shown), (title, shown)
+
+
+def test_bench_says_where_late_sends_come_from() -> None:
+    """The bench's send-timing summary: each late slot is put down to its biggest part
+    (the OS run queue, the interpreter lock, the send's own work, or a pose that came late)."""
+    from app.benches.onair import engine_timing, send_timing
+    from engine.outputs.sender import SlotTiming
+    from engine.pipeline import FrameTiming
+
+    P = 1 / 30
+    nan = float("nan")
+    slots = [
+        # on time, sent by a fresh pose inside the window
+        SlotTiming(1.0, 0.995, False, True, nan, 0.9949, nan, 0.9948, 0.985, 0.9948),
+        # a held slot whose wake-up came 12 ms late, 1 ms of it in the run queue: the GIL
+        SlotTiming(1.0 + P, 1.0 + P + 0.0125, True, False, 1.0 + P, 1.0 + P + 0.012, 1.0,
+                   0.9948, nan, nan),
+        # a pose that came after the due time woke the sender: late by the pose
+        SlotTiming(1.0 + 2 * P, 1.0 + 2 * P + 0.02, False, True, nan, 1.0 + 2 * P + 0.0199,
+                   nan, 1.0 + 2 * P + 0.0199, 1.0 + P + 0.01, 1.0 + 2 * P + 0.0198),
+    ]
+    out = send_timing(slots, 1000 * P)
+    assert out["slots"] == 3
+    assert out["late_sends"] == 2
+    assert out["late_causes"] == {"run_queue": 0, "gil": 1, "work": 0, "fresh_late": 1}
+    assert out["gil_ms"]["max"] == pytest.approx(11.0, abs=0.01)
+    assert out["worst_gaps"][0]["gap_ms"] == pytest.approx(1000 * (P + 0.0175), abs=0.01)
+    assert out["worst_gaps"][0]["prev_late_ms"] == pytest.approx(-5.0, abs=0.01)
+    assert out["capture_to_done_ms"]["p50"] is not None
+    eng = engine_timing([FrameTiming(0, 0.1, 0.2, 9.0, 3.0, 2.0, 0.4)])
+    assert eng["track_gil_ms"]["p50"] == pytest.approx(4.0)
+    assert send_timing([], 33.3) == {}

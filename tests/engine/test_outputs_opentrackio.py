@@ -9,6 +9,7 @@ import struct
 
 import cbor2
 import jsonschema
+import numpy as np
 import pytest
 
 from engine.camera import Intrinsics
@@ -195,3 +196,20 @@ def test_multicast_on_loopback_interface(schema):
         jsonschema.validate(s, schema)
         assert s["sourceNumber"] == 9
     rx.close()
+
+
+def test_fletcher16_matches_the_running_sums() -> None:
+    """The vectorised checksum equals the definition (running sums mod 256), any length."""
+
+    def reference(data: bytes) -> int:
+        s1 = s2 = 0
+        for b in data:
+            s1 = (s1 + b) & 0xFF
+            s2 = (s2 + s1) & 0xFF
+        return (s2 << 8) | s1
+
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 2, 255, 256, 257, 1500, 70000):
+        data = rng.integers(0, 256, n, dtype=np.uint8).tobytes()
+        assert ot.fletcher16_mod256(data) == reference(data), n
+    assert ot.fletcher16_mod256(b"\xff" * 4000) == reference(b"\xff" * 4000)
