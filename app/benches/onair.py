@@ -26,6 +26,7 @@ import argparse
 import itertools
 import socket
 import statistics
+import struct
 import sys
 import threading
 import time
@@ -60,16 +61,34 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="frames tracked headless first for the reference timing (default 150)")
 
 
+#: Linux: receive timestamps taken by the kernel (struct timespec, CLOCK_REALTIME)
+_SO_TIMESTAMPNS = 35
+
+
 class _Receiver:
-    """Counts datagrams (arrival times) on a loopback port."""
+    """Counts datagrams on a loopback port, with their arrival times (monotonic s).
+
+    Arrival is the kernel's receive timestamp where Linux gives one (``SO_TIMESTAMPNS``):
+    this receiver is a Python thread of the measured process, so the moment it wakes
+    includes its own wait for the interpreter lock, which is not the sender's lateness and
+    not what a render engine on another machine sees. ``thread_times`` keeps the wake-up
+    times too (``clock``: "kernel" or "thread": which ``times`` holds)."""
 
     def __init__(self) -> None:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.clock = "thread"
+        if sys.platform == "linux":
+            try:
+                self.sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+                self.clock = "kernel"
+            except OSError:
+                pass
         self.sock.settimeout(0.05)
         self.port = self.sock.getsockname()[1]
         self.times: list[float] = []
+        self.thread_times: list[float] = []
         self._stop = False
         self._t = threading.Thread(target=self._run, daemon=True, name="onair-rx")
         self._t.start()
@@ -77,12 +96,20 @@ class _Receiver:
     def _run(self) -> None:
         while not self._stop:
             try:
-                self.sock.recv(65536)
+                _, anc, _, _ = self.sock.recvmsg(65536, socket.CMSG_SPACE(16))
             except TimeoutError:
                 continue
             except OSError:
                 return
-            self.times.append(time.monotonic())
+            mono = time.monotonic()
+            wall = time.time()
+            t = mono
+            for level, kind, data in anc:
+                if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(data) >= 16:
+                    sec, nsec = struct.unpack("qq", data[:16])
+                    t = mono - (wall - (sec + nsec * 1e-9))  # the kernel's time, monotonic
+            self.times.append(t)
+            self.thread_times.append(mono)
 
     def close(self) -> None:
         self._stop = True
@@ -118,7 +145,7 @@ class OnAirResult:
     rate_hz: float
     t0: float
     t1: float
-    rx_times: list[list[float]]
+    rx_times: list[list[float]]  # arrival times per target (the kernel's where it says)
     tracker_ms: list[float]
     frames: int
     dropped: int
@@ -132,6 +159,8 @@ class OnAirResult:
     frame_timings: list[Any] = field(default_factory=list)  # engine.pipeline.FrameTiming
     switch_interval_s: float = float("nan")
     priorities: dict[str, Any] = field(default_factory=dict)
+    rx_thread_times: list[list[float]] = field(default_factory=list)  # receiver wake-ups
+    rx_clock: str = ""
 
 
 def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
@@ -289,6 +318,9 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
         rate_hz=float(st.rate_hz) if st is not None else float("nan"),
         t0=marks["t0"], t1=marks["t1"],
         rx_times=[[t for t in rx.times if marks["t0"] <= t <= marks["t1"]] for rx in receivers],
+        rx_thread_times=[[t for t in rx.thread_times if marks["t0"] <= t <= marks["t1"]]
+                         for rx in receivers],
+        rx_clock=",".join(sorted({rx.clock for rx in receivers})),
         tracker_ms=[s.process_ms for s in samples],
         frames=len(samples) + int(state.get("missed", 0)),
         dropped=int(state.get("dropped", 0)),
@@ -339,6 +371,12 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
         "max_send_gap_ms": round(max_gap, 3),
         "send_gap_p99_ms": round(p99, 3),
         "max_gap_periods": round(max_gap / period_ms, 3) if period_ms == period_ms else None,
+        # how arrival was timed (kernel receive timestamps, else the receiving thread), and
+        # the gap as the receiving thread saw it (its own waits for the interpreter included)
+        "rx_clock": res.rx_clock or None,
+        "max_send_gap_ms_rx_thread": _max_gap(res.rx_thread_times),
+        # the sender's own send times (after each sendto)
+        "max_send_gap_ms_sender": _max_gap([[t.sent_s for t in res.slot_timings]]),
         "latency_capture_to_send_ms": {"p50": _r(lat[0]), "p95": _r(lat[1]), "max": _r(lat[2])},
         "gui_records_dropped": res.dropped,
         "gui_stall_ms": round(res.stall_ms, 1),
@@ -459,6 +497,12 @@ def engine_timing(frames: list[Any]) -> dict[str, Any]:
         "track_gil_ms": _pct([f.track_gil_ms for f in frames]),
         "sinks_ms": _pct([f.sinks_ms for f in frames]),
     }
+
+
+def _max_gap(series: list[list[float]]) -> float | None:
+    """The longest gap (ms) between consecutive times of any series."""
+    gaps = [float(np.diff(np.asarray(t)).max()) * 1000.0 for t in series if len(t) >= 2]
+    return round(max(gaps), 3) if gaps else None
 
 
 def _r(x: float) -> float | None:

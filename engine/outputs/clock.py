@@ -10,6 +10,12 @@ rate); every slot sends exactly once:
   window opened, the held one, or the last good one flagged LOST by the sender when the
   engine stalled or failed).
 
+A slot fired early (a fresh pose at its window's start) followed by a held one at its due
+time would leave a gap of ``P + P/2``; so a slot without a fresh pose fires by the timer at
+``min(due, last send + max_gap)`` with ``max_gap = (1.5 - margin) P``: the gap between two
+sends stays below 1.5 periods by ``margin`` P, room for the sender waking late (waiting for
+the interpreter lock, the OS), and a held slot goes at most that much before its due time.
+
 So the send rate is exactly ``rate_hz``, a late tracker frame is measured (latency, held
 slots) instead of queued, and no burst follows a stall (slots the sender thread itself
 slept through are counted as missed and skipped). A slow phase correction moves the slot
@@ -25,6 +31,9 @@ from __future__ import annotations
 import math
 
 from engine.outputs import OutputError
+
+#: the gap between two sends stays this many periods below 1.5 (see the module docstring)
+GAP_MARGIN_FRAC = 0.15
 
 #: the video rates an operator can pick (Hz)
 VIDEO_RATES_HZ = (24000 / 1001, 24.0, 25.0, 30000 / 1001, 30.0, 50.0, 60000 / 1001, 60.0)
@@ -59,17 +68,22 @@ def rate_name(rate_hz: float) -> str:
 class OutputClock:
     """Slot scheduling for one output rate (see the module docstring)."""
 
-    def __init__(self, rate_hz: float, *, window_frac: float = 0.5, gain: float = 0.1) -> None:
+    def __init__(self, rate_hz: float, *, window_frac: float = 0.5, gain: float = 0.1,
+                 gap_margin_frac: float = GAP_MARGIN_FRAC) -> None:
         if not math.isfinite(rate_hz) or rate_hz <= 0:
             raise OutputError(f"output rate {rate_hz!r} Hz must be positive")
         self.rate_hz = float(rate_hz)
         self.period_s = 1.0 / self.rate_hz
         self.window_s = window_frac * self.period_s
         self.gain = gain
+        #: the longest a held slot waits after the previous send (see the module docstring)
+        self.max_gap_s = (1.0 + window_frac - gap_margin_frac) * self.period_s
         self.due: float | None = None  # the pending slot's due time (None: not started)
+        self.last_fired: float | None = None  # when the previous slot was sent
         self.slots = 0  # slots fired
         self.early = 0  # of which by fresh data
         self.missed = 0  # slots skipped because the sender woke too late
+        self.gap_bounded = 0  # held slots sent before their due time to bound the gap
 
     @property
     def started(self) -> bool:
@@ -90,20 +104,30 @@ class OutputClock:
 
     def should_fire(self, now: float, arrived: bool) -> bool:
         """Whether the pending slot sends now (``arrived``: a fresh pose came just now)."""
-        if self.due is None:
+        wake = self.wake_at()
+        if wake is None or self.due is None:
             return False
-        return now >= self.due or (arrived and now >= self.due - self.window_s)
+        return now >= wake or (arrived and now >= self.due - self.window_s)
 
     def wake_at(self) -> float | None:
-        """When the sender must look again without new data (None: not started)."""
-        return self.due
+        """When the sender must look again without new data (None: not started): the due
+        time, or earlier where the gap since the previous send would reach ``max_gap_s``."""
+        if self.due is None:
+            return None
+        if self.last_fired is None:
+            return self.due
+        return min(self.due, self.last_fired + self.max_gap_s)
 
     def fired(self, now: float) -> None:
         """The pending slot was sent at ``now``: the next one is due a period later."""
         assert self.due is not None
         self.slots += 1
         if now < self.due:
-            self.early += 1
+            if self.last_fired is not None and now >= self.last_fired + self.max_gap_s:
+                self.gap_bounded += 1
+            else:
+                self.early += 1
+        self.last_fired = now
         nxt = self.due + self.period_s
         if nxt <= now:  # the sender woke too late: skip the slots it slept through
             skip = math.floor((now - nxt) / self.period_s) + 1

@@ -90,6 +90,35 @@ def test_a_stalled_tracker_does_not_stop_the_slots_and_no_burst_follows() -> Non
     assert gaps.min() >= 0.45 * P  # and no burst when frames come back
 
 
+def test_a_held_slot_after_an_early_one_keeps_the_gap_below_one_and_a_half_periods() -> None:
+    """A frame done at its window's opening, then none: the held slot goes early enough
+    that the gap stays 0.15 periods below 1.5 (room for a late wake-up), and the rate holds."""
+    P = 1 / 30
+    c = OutputClock(30.0)
+    c.start(0.0)
+    c.fired(0.0)
+    assert c.max_gap_s == pytest.approx(1.35 * P)
+    c.on_arrival(P - c.window_s)  # the next frame right at its window's start
+    assert c.should_fire(P - c.window_s, True)
+    t1 = P - c.window_s
+    c.fired(t1)
+    assert c.wake_at() == pytest.approx(t1 + 1.35 * P)  # before the due time 2P
+    assert c.wake_at() < c.due
+    assert not c.should_fire(t1 + 1.3 * P, False)
+    assert c.should_fire(t1 + 1.35 * P, False)
+    c.fired(t1 + 1.35 * P)
+    assert c.gap_bounded == 1
+    assert c.missed == 0
+    assert c.due == pytest.approx(3 * P, abs=0.05 * P)  # the grid is unchanged
+    # frames that arrive early then late, alternately: every gap below 1.5 P, one per slot
+    rng = np.random.default_rng(3)
+    arrivals = [k * P + (0.002 if k % 2 else 0.030) + 0.001 * rng.random()
+                for k in range(300)]
+    fires = simulate(OutputClock(30.0), arrivals, 300 * P)
+    assert np.diff(fires).max() <= 1.35 * P + 1e-4
+    assert len(fires) == pytest.approx(300, abs=2)
+
+
 def test_sender_wakes_late_skips_missed_slots() -> None:
     c = OutputClock(50.0)
     c.start(0.0)
