@@ -375,16 +375,46 @@ def histogram(
 
 
 @njit(cache=True, nogil=True)
+def gather_cells(
+    u0: np.ndarray, v0: np.ndarray, depth: np.ndarray, cells: np.ndarray, lo: int, hi: int
+) -> None:
+    """The four depths around each full-resolution position ``(u0, v0)`` into ``cells`` (4,
+    n): (x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1); 0 outside the image (the
+    scalar part of :func:`sample_geometric`: the look-ups)."""
+    hd, wd = depth.shape
+    c0 = cells[0]
+    c1 = cells[1]
+    c2 = cells[2]
+    c3 = cells[3]
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
+        u = u0[i]
+        v = v0[i]
+        if u >= 0.0 and v >= 0.0 and u < wd - 1 and v < hd - 1:
+            x0 = int(u)
+            y0 = int(v)
+            c0[i] = depth[y0, x0]
+            c1[i] = depth[y0, x0 + 1]
+            c2[i] = depth[y0 + 1, x0]
+            c3[i] = depth[y0 + 1, x0 + 1]
+        else:
+            c0[i] = 0.0
+            c1[i] = 0.0
+            c2[i] = 0.0
+            c3[i] = 0.0
+
+
+@njit(cache=True, fastmath=True, nogil=True)
 def sample_geometric(
     u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, P: np.ndarray, N: np.ndarray,
-    depth: np.ndarray, T: np.ndarray, M: np.ndarray, inv_tau2: float, rg: np.ndarray,
+    cells: np.ndarray, T: np.ndarray, M: np.ndarray, inv_tau2: float, rg: np.ndarray,
     wg: np.ndarray, lo: int, hi: int,
-) -> int:
+) -> None:
     """Point-to-plane residual ``r = n . (M Q - P)`` in the reference frame for the geometric
     points ``P`` (warped by ``T`` to ``X = T P``, projected into ``(u0, v0)``, depth ``Z``):
     ``Q = X z / Z`` is the current surface point on the ray through ``(u0, v0)`` (projective
     association, as ICP), ``z`` the current depth there, interpolated bilinearly in inverse
-    depth (exact on a plane, where 1/z is affine in the pixel), ``M = T^-1 T_color_depth``.
+    depth (exact on a plane, where 1/z is affine in the pixel) from the four depths of
+    :func:`gather_cells`, ``M = T^-1 T_color_depth``.
 
     Sub-pixel, not the nearest pixel: with the nearest pixel Q lies up to half a pixel off the
     ray, along the surface, and ``n . (M Q - P)`` is then not zero at the true pose wherever the
@@ -396,65 +426,53 @@ def sample_geometric(
     ``wg`` is the depth weight of eq. (12) of the association (a presenter in front of the
     static scene gets 0, like in the photometric term), 0 where there is no residual (outside,
     behind the camera, no normal, a missing depth or one of the four depths beyond tau: a depth
-    edge inside the interpolation cell). Returns the number of residuals."""
-    hd, wd = depth.shape
-    R00, R01, R02, t0 = M[0, 0], M[0, 1], M[0, 2], M[0, 3]
-    R10, R11, R12, t1 = M[1, 0], M[1, 1], M[1, 2], M[1, 3]
-    R20, R21, R22, t2 = M[2, 0], M[2, 1], M[2, 2], M[2, 3]
-    T00, T01, T02, s0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
-    T10, T11, T12, s1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
-    cnt = 0
+    edge inside the interpolation cell). Branch-free, so it vectorises."""
+    # M (s X) - P = s (G P - t_M) + t_M - P with G = M T, X = T P, s = z / Z
+    G = M @ T
+    G00, G01, G02 = G[0, 0], G[0, 1], G[0, 2]
+    G10, G11, G12 = G[1, 0], G[1, 1], G[1, 2]
+    G20, G21, G22 = G[2, 0], G[2, 1], G[2, 2]
+    m0, m1, m2 = M[0, 3], M[1, 3], M[2, 3]
+    h0, h1, h2 = G[0, 3] - m0, G[1, 3] - m1, G[2, 3] - m2
+    c0 = cells[0]
+    c1 = cells[1]
+    c2 = cells[2]
+    c3 = cells[3]
     for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
-        rg[i] = 0.0
-        wg[i] = 0.0
-        Zi = Z[i]
-        if not Zi > 1e-3:
-            continue
-        nx = N[0, i]
-        ny = N[1, i]
-        nz = N[2, i]
-        if nx == 0.0 and ny == 0.0 and nz == 0.0:
-            continue
+        Zi = max(Z[i], 1e-3)
+        z00 = np.float64(c0[i])
+        z01 = np.float64(c1[i])
+        z10 = np.float64(c2[i])
+        z11 = np.float64(c3[i])
         u = u0[i]
         v = v0[i]
-        if not (u >= 0.0 and v >= 0.0 and u < wd - 1 and v < hd - 1):
-            continue
-        x0 = int(u)
-        y0 = int(v)
-        z00 = depth[y0, x0]
-        z01 = depth[y0, x0 + 1]
-        z10 = depth[y0 + 1, x0]
-        z11 = depth[y0 + 1, x0 + 1]
-        if not (z00 > 0.0 and z01 > 0.0 and z10 > 0.0 and z11 > 0.0):
-            continue
-        d00 = z00 - Zi
-        d01 = z01 - Zi
-        d10 = z10 - Zi
-        d11 = z11 - Zi
-        if max(max(d00 * d00, d01 * d01), max(d10 * d10, d11 * d11)) * inv_tau2 >= 1.0:
-            continue
-        ax = u - x0
-        ay = v - y0
-        iz = ((1.0 - ay) * ((1.0 - ax) / z00 + ax / z01)
-              + ay * ((1.0 - ax) / z10 + ax / z11))
-        z = 1.0 / iz
-        ez = z - Zi
+        ax = u - math.floor(u)
+        ay = v - math.floor(v)
+        # z = 1 / (bilinear 1/z) over a common denominator: one division
+        q0 = z00 * z01
+        q1 = z10 * z11
+        den = ((1.0 - ay) * ((1.0 - ax) * z01 + ax * z00) * q1
+               + ay * ((1.0 - ax) * z11 + ax * z10) * q0)
+        s = q0 * q1 / max(den * Zi, 1e-30)
+        ez = Zi * (s - 1.0)
         t = 1.0 - ez * ez * inv_tau2
-        if not t > 0.0:
-            continue
+        dlo = min(min(z00, z01), min(z10, z11)) - Zi
+        dhi = max(max(z00, z01), max(z10, z11)) - Zi
+        nx = np.float64(N[0, i])
+        ny = np.float64(N[1, i])
+        nz = np.float64(N[2, i])
+        ok = ((Z[i] > 1e-3) & (dlo + Zi > 0.0) & (max(dlo * dlo, dhi * dhi) * inv_tau2 < 1.0)
+              & (nx * nx + ny * ny + nz * nz > 0.0))
         px = np.float64(P[0, i])
         py = np.float64(P[1, i])
         pz = np.float64(P[2, i])
-        s = z / Zi
-        X = (T00 * px + T01 * py + T02 * pz + s0) * s
-        Y = (T10 * px + T11 * py + T12 * pz + s1) * s
-        qx = R00 * X + R01 * Y + R02 * z + t0
-        qy = R10 * X + R11 * Y + R12 * z + t1
-        qz = R20 * X + R21 * Y + R22 * z + t2
-        rg[i] = nx * (qx - px) + ny * (qy - py) + nz * (qz - pz)
-        wg[i] = t * t
-        cnt += 1
-    return cnt
+        dx = s * (G00 * px + G01 * py + G02 * pz + h0) + m0 - px
+        dy = s * (G10 * px + G11 * py + G12 * pz + h1) + m1 - py
+        dz = s * (G20 * px + G21 * py + G22 * pz + h2) + m2 - pz
+        r = nx * dx + ny * dy + nz * dz
+        # (ok: every depth of the cell, hence z, lies within tau, so t > 0)
+        rg[i] = r if ok else 0.0
+        wg[i] = t * t if ok else 0.0
 
 
 @njit(cache=True, fastmath=True, nogil=True)
@@ -839,6 +857,7 @@ def minimize(
     vg = np.zeros(ngb)
     Zg = np.zeros(ngb)
     bins_g = np.zeros(ngb, dtype=np.int32)
+    cells = np.zeros((4, ngb), dtype=np.float32)
     inv_tau2 = 1.0 / (tau_m * tau_m)
     beta = 0.0
     alpha = 1.0
@@ -908,11 +927,10 @@ def minimize(
                 mg = min(ng, max(12, (ng * m) // n))
                 M = _inverse(T) @ T_cd
                 project(Pg, T, cam, dist, ug, vg, Zg, m - m, mg)
-                ngk = sample_geometric(
-                    ug, vg, Zg, Pg, N, depth, T, M, inv_tau2, rg, wg, m - m, mg
-                )
+                gather_cells(ug, vg, depth, cells, m - m, mg)
+                sample_geometric(ug, vg, Zg, Pg, N, cells, T, M, inv_tau2, rg, wg, m - m, mg)
                 hist[:] = 0
-                histogram(rg, wg, GEO_UNIT, bins_g, hist, m - m, mg)
+                ngk = histogram(rg, wg, GEO_UNIT, bins_g, hist, m - m, mg)
                 if ngk >= 12:
                     _cumulate(hist, cum)
                     medg = hist_median_abs(cum, hist, 0.0) / GEO_UNIT

@@ -412,7 +412,8 @@ def test_kernels_see_one_type_per_argument() -> None:
     # the callees only minimize calls (compiled here on a fresh cache, empty when minimize
     # came from the cache): no literal-argument twin specialisations
     for callee in (kernels._photometric_pass, kernels._accumulate_pass, kernels.sample,
-                   kernels.sample_geometric, kernels._unpack, kernels._unpack_add,
+                   kernels.sample_geometric, kernels.gather_cells, kernels._unpack,
+                   kernels._unpack_add,
                    kernels._photometric_chunk, kernels.project, kernels.histogram):
         assert len(callee.signatures) <= 1, (callee.py_func.__name__, callee.signatures)
 
