@@ -72,10 +72,11 @@ class DenseParams(Params):
                                          "at 80x60); 1: all points at every level (the paper). "
                                          "0.25 tracked the same on TUM fr1_xyz and the rail but "
                                          "lost a fast pan at 320x240 that 0.5 follows")
-    geometric_weight: float = param(0.0, lo=0.0, hi=10.0, step=0.1,
+    geometric_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
                                     help="weight of a point-to-plane depth residual (ICP-like) "
                                     "added to the photometric cost at the finest level, each in "
-                                    "units of its robust scale; 0: photometric only (the paper)")
+                                    "units of its robust scale (1: neither favoured); 0: "
+                                    "photometric only (the paper)")
     min_geometric_scale_m: float = param(1e-6, lo=1e-9, hi=0.01, step=1e-6,
                                          help="floor of the geometric term's robust scale "
                                          "(median |point-to-plane residual|), a guard "
@@ -84,9 +85,10 @@ class DenseParams(Params):
                                          "term below the photometric (1 mm: the noise-free "
                                          "studio rail drifted 8 mm in one cycle, 1.4 mm at "
                                          "1 um)")
-    geometric_points: int = param(0, lo=0, hi=76800, step=1024,
+    geometric_points: int = param(8192, lo=0, hi=76800, step=1024,
                                   help="points of the geometric term, spread over all valid "
-                                  "depth (walls and floors too); 0: the photometric points")
+                                  "depth (walls and floors too; as many as the photometric "
+                                  "term by default); 0: the photometric points")
     compensate_depth_delay: bool = param(True,
                                          help="move reference points by the camera motion "
                                          "between the depth and colour timestamps "
