@@ -18,8 +18,10 @@ def _last_json(out: str) -> dict:  # type: ignore[type-arg]
 
 
 def _track(src: str, out: Path, capsys: pytest.CaptureFixture[str]) -> dict:  # type: ignore[type-arg]
-    assert main(["track", src, "--tracker", "dense-incremental", "--out", str(out),
-                 "--json"]) == 0
+    # photometric only: the bag stores depth in 1 mm units, the TUM folder in 0.2 mm, and the
+    # point-to-plane term sees that (rail 40 frames: ATE 2.2 vs 1.3 mm; photometric 2.9 both)
+    assert main(["track", src, "--tracker", "dense-incremental", "--param",
+                 "geometric_weight=0", "--out", str(out), "--json"]) == 0
     return _last_json(capsys.readouterr().out)
 
 
