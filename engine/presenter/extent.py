@@ -26,12 +26,12 @@ paper's.
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
-from engine.arrays import u8
-from engine.presenter.likelihood import apply_gains, bin_map
+from engine.presenter.frame_colour import hard_bins
+from engine.presenter.likelihood import S_MIN_DEFAULT, V_MIN_DEFAULT
 
 F64 = NDArray[np.float64]
 
@@ -55,19 +55,41 @@ def measure_extent(bgr: NDArray[np.uint8], gains: F64 | None, xyh: F64, aspect: 
     xa, xb = int(max(x - search_frac * w0, 0)), int(min(x + search_frac * w0, W))
     if y1 - y0 < 4 or xb - xa < 4:
         return None
-    strip = apply_gains(np.ascontiguousarray(bgr[y0:y1:STEP, xa:xb:STEP]), gains)
-    bins = bin_map(u8(cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)), n_bins)
-    cols = xa + STEP * np.arange(bins.shape[1]) + 0.5 * STEP  # image x of each strip column
+    bins = hard_bins(bgr, (xa, y0, xb, y1), STEP, n_bins, gains, S_MIN_DEFAULT, V_MIN_DEFAULT)
+    got = _extent(bins, float(xa), float(x), w0, np.ascontiguousarray(fg_hist, np.float64),
+                  bg_from_frac, col_frac, max(int(max_gap_px / STEP), 1), w_min_frac,
+                  w_max_frac)
+    return None if got[1] < 0 else (float(got[0]), float(got[1]))
+
+
+@njit(cache=True, nogil=True)
+def _extent(bins: NDArray[np.int32], xa: float, x: float, w0: float, fg_hist: F64,
+            bg_from_frac: float, col_frac: float, max_gap: int, w_min_frac: float,
+            w_max_frac: float) -> tuple[float, float]:
+    # steps 2-5 of the module docstring; width -1 = not measurable
+    rows, n_cols = bins.shape
+    cols = np.empty(n_cols)
+    for i in range(n_cols):
+        cols[i] = xa + STEP * i + 0.5 * STEP  # image x of each strip column
     outer = np.abs(cols - x) > bg_from_frac * w0
     if int(outer.sum()) < 3:
-        return None  # no background visible beside the target (image edge)
-    nb = len(fg_hist)
-    g = np.bincount(bins[:, outer].ravel(), minlength=nb).astype(np.float64)
+        return 0.0, -1.0  # no background visible beside the target (image edge)
+    nb = fg_hist.shape[0]
+    g = np.zeros(nb)
+    for r in range(rows):
+        for i in range(n_cols):
+            if outer[i]:
+                g[bins[r, i]] += 1.0
     g /= max(g.sum(), 1.0)
     ratio = fg_hist / np.maximum(fg_hist + g, 1e-12)
-    fg_cols = np.mean(ratio[bins] > 0.5, axis=0) >= col_frac
-    c = int(np.clip(np.searchsorted(cols, x), 0, len(cols) - 1))
-    max_gap = max(int(max_gap_px / STEP), 1)
+    fg_cols = np.empty(n_cols, np.bool_)
+    for i in range(n_cols):
+        k = 0
+        for r in range(rows):
+            if ratio[bins[r, i]] > 0.5:
+                k += 1
+        fg_cols[i] = k / rows >= col_frac
+    c = min(max(int(np.searchsorted(cols, x)), 0), n_cols - 1)
     lo = hi = c
     gap = 0
     for i in range(c - 1, -1, -1):
@@ -78,7 +100,7 @@ def measure_extent(bgr: NDArray[np.uint8], gains: F64 | None, xyh: F64, aspect: 
             if gap > max_gap:
                 break
     gap = 0
-    for i in range(c + 1, len(cols)):
+    for i in range(c + 1, n_cols):
         if fg_cols[i]:
             hi, gap = i, 0
         else:
@@ -86,6 +108,6 @@ def measure_extent(bgr: NDArray[np.uint8], gains: F64 | None, xyh: F64, aspect: 
             if gap > max_gap:
                 break
     left, right = cols[lo] - 0.5 * STEP, cols[hi] + 0.5 * STEP
-    width = float(np.clip(right - left, w_min_frac * w0, w_max_frac * w0))
-    centre = float(np.clip(0.5 * (left + right), x - SHIFT * w0, x + SHIFT * w0))
+    width = min(max(right - left, w_min_frac * w0), w_max_frac * w0)
+    centre = min(max(0.5 * (left + right), x - SHIFT * w0), x + SHIFT * w0)
     return centre, width

@@ -57,21 +57,21 @@ from numpy.typing import NDArray
 from engine.arrays import u8
 from engine.particles import systematic_resample
 from engine.presenter import filter as pf
+from engine.presenter import frame_colour as fc
 from engine.presenter.extent import measure_extent
 from engine.presenter.jitter import JitterFilter
 from engine.presenter.likelihood import (
+    S_MIN_DEFAULT,
+    SOFT_DEFAULT,
+    V_MIN_DEFAULT,
     MotionHistory,
     apply_gains,
-    binned_integral,
     colour_likelihood,
-    colour_residuals,
     direct_histogram,
     grey_world_gains,
     motion_likelihood,
     motion_residuals,
-    patch_residuals,
-    rect_histogram,
-    ring_similarity,
+    n_bins_total,
 )
 from engine.presenter.model import PatchModel
 from engine.presenter.params import PresenterParams
@@ -223,33 +223,35 @@ class ViewTracker:
             # integral histogram): a quarter of the colour conversion and counting
             step = 2 if cell >= 4 else 1
             cell += cell % step
-            roi = apply_gains(bgr[y0:y1:step, x0:x1:step], self._gains)
-            roi_hsv = u8(cv2.cvtColor(roi, cv2.COLOR_BGR2HSV))
-            integral = binned_integral(roi_hsv, self.model.n_bins, cell // step,
-                                       pixel_weight=float(step * step))
-            ctx = (integral, cell, (x0, y0, x1 - x0, y1 - y0), (W, H))
-            b2 = self._colour(ctx, states)
-            if p.ring_weight > 0:
-                b2 = b2 + p.ring_weight * ring_similarity(
-                    integral, cell, ctx[2], (W, H), states, self.model.aspect,
-                    p.ring_margin_frac, self._sqrt_pooled)
+            ctx = self._integral(bgr, (x0, y0, x1, y1), step, cell)
+            b2 = fc.colour_b2(ctx, states, self._rel, self.model.aspect, self._sqrt_ref,
+                              p.ring_weight, p.ring_margin_frac, self._sqrt_pooled)
         e = None
         if motion and p.use_motion and self.motion.mhi is not None:
             e = motion_residuals(self.motion.motion_integral(), states, self._rel,
                                  self.model.aspect, MOTION_STEP)
         return b2, e, ctx
 
+    def _integral(self, bgr: NDArray[np.uint8], roi_xyxy: tuple[int, int, int, int],
+                  step: int, cell: int) -> fc.RoiIntegral:
+        """The integral histogram of ``roi_xyxy`` (grey-world balanced, HSV, bilinear votes)
+        on ``cell`` px cells from every ``step``-th pixel each way (counts in full-resolution
+        pixels)."""
+        x0, y0, x1, y1 = roi_xyxy
+        integral, used = fc.roi_integral(bgr, roi_xyxy, step, cell // step, self.model.n_bins,
+                                         self._gains, S_MIN_DEFAULT, V_MIN_DEFAULT,
+                                         float(step * step), SOFT_DEFAULT)
+        return fc.RoiIntegral(integral, used, n_bins_total(self.model.n_bins), cell,
+                              (x0, y0, x1 - x0, y1 - y0), (bgr.shape[1], bgr.shape[0]))
+
     def _colour(self, ctx: Any, states: F64) -> F64:
-        integral, cell, roi, wh = ctx
-        return colour_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
-                                self._sqrt_ref)
+        """sum_p B_p^2 (eq. 2-3, no ring term) of each state row."""
+        return fc.colour_b2(ctx, states, self._rel, self.model.aspect, self._sqrt_ref)
 
     def _fixed_residual(self, ctx: Any, states: F64) -> F64:
         """B_p^2 (states x patches) against the anchored model without background weighting
         (the loss test's reference)."""
-        integral, cell, roi, wh = ctx
-        return patch_residuals(integral, cell, roi, wh, states, self._rel, self.model.aspect,
-                               self._sqrt_ref0)
+        return fc.patch_b2(ctx, states, self._rel, self.model.aspect, self._sqrt_ref0)
 
     def _background_levels(self, bgr: NDArray[np.uint8], xyh: F64) -> None:
         """beta_p: per patch, the ``loss_bg_quantile`` of B_p^2 over boxes of the target's
@@ -260,11 +262,14 @@ class ViewTracker:
         x, y, h = (float(v) for v in xyh)
         w = h * self.model.aspect
         step = max(1, math.ceil(max(W, H) / 160))  # coarse: at most 160 px a side
-        small = np.ascontiguousarray(bgr[::step, ::step])
-        hsv = u8(cv2.cvtColor(apply_gains(small, self._gains), cv2.COLOR_BGR2HSV))
         cell = 2
-        ctx = (binned_integral(hsv, self.model.n_bins, cell, pixel_weight=float(step * step)),
-               cell, (0, 0, hsv.shape[1], hsv.shape[0]), (hsv.shape[1], hsv.shape[0]))
+        # the frame subsampled by step, on cells of 2 subsampled px: coordinates in those
+        hs_, ws_ = (H + step - 1) // step, (W + step - 1) // step
+        integral, used = fc.roi_integral(bgr, (0, 0, W, H), step, cell, self.model.n_bins,
+                                         self._gains, S_MIN_DEFAULT, V_MIN_DEFAULT,
+                                         float(step * step), SOFT_DEFAULT)
+        ctx = fc.RoiIntegral(integral, used, n_bins_total(self.model.n_bins), cell,
+                             (0, 0, ws_, hs_), (ws_, hs_))
         rng = self._bg_rng
         n = 4 * BG_SAMPLES
         k = rng.uniform(0.8, 1.25, n)
@@ -281,9 +286,7 @@ class ViewTracker:
         if len(keep) < 8:
             return  # no room for background beside the target: beta stays as it was
         states = np.stack([cx[keep], cy[keep], hs[keep]], axis=1) / step
-        integral, c, roi, wh = ctx
-        r = patch_residuals(integral, c, roi, wh, states, self._rel, self.model.aspect,
-                            self._sqrt_ref0)
+        r = fc.patch_b2(ctx, states, self._rel, self.model.aspect, self._sqrt_ref0)
         beta = np.quantile(r, self.params.loss_bg_quantile, axis=0)
         self._beta = beta if self._beta is None else self._beta + 0.2 * (beta - self._beta)
         recent = self._recent_motion_integral()
@@ -332,13 +335,14 @@ class ViewTracker:
     def _patch_hists(self, ctx: Any, xyh: F64) -> F64 | None:
         """Normalised patch histograms at one state from the frame's integral (None if a
         patch is not wholly inside the image)."""
-        integral, cell, (ox, oy, _rw, _rh), (W, H) = ctx
+        ox, oy, _rw, _rh = ctx.roi_xywh
+        W, H = ctx.image_wh
         boxes = self.model.boxes_at(float(xyh[0]), float(xyh[1]), float(xyh[2]))[1:]
-        out = np.empty((len(boxes), integral.shape[2]))
+        out = np.empty((len(boxes), ctx.n_bins_total))
         for k, (x, y, w, h) in enumerate(boxes):
             if x < 0 or y < 0 or x + w > W or y + h > H:
                 return None
-            c = np.maximum(rect_histogram(integral, cell, (x - ox, y - oy, w, h)), 0.0)
+            c = np.maximum(ctx.rect_counts((x - ox, y - oy, w, h)), 0.0)
             total = c.sum()
             if total <= 0:
                 return None
