@@ -355,13 +355,20 @@ class PresenterPage(Page):
         self.side_tabs = QTabWidget()
         self.side_tabs.addTab(model_box, "Model")
         self.side_tabs.addTab(form_scroll, "Parameters")
-        self.side_tabs.addTab(self.floor_box, "Floor")
+        # the floor form scrolls too: its height (table, robot, lens rows) must not set the
+        # page's minimum (at 1280 x 800 it pushed the plots' axes below the window)
+        floor_scroll = QScrollArea()
+        floor_scroll.setWidget(self.floor_box)
+        floor_scroll.setWidgetResizable(True)
+        floor_scroll.setFrameShape(QFrame.Shape.NoFrame)
+        self.side_tabs.addTab(floor_scroll, "Floor")
         model_box.setTitle("")
         model_box.setStyleSheet("QGroupBox { border: none; margin-top: 0; padding-top: 0; }")
         right = QWidget()
         rv = QVBoxLayout(right)
         rv.addWidget(live_box)
         rv.addWidget(self.side_tabs, 1)
+        right.setMinimumWidth(430)  # readouts on one line each, the floor form unclipped
 
         plots = QWidget()
         pv = QHBoxLayout(plots)
@@ -626,9 +633,10 @@ class PresenterPage(Page):
             box.setRange(0, 2**31 - 1)
             box.setToolTip("the overhead camera's encoder counts when the marks were taken "
                            "(filled from the taken frame where the camera reports them)")
+            box.setMinimumWidth(70)  # not as wide as 2^31 - 1: the form fits a narrow tab
         grid.addWidget(QLabel("lens"), 3, 0)
         grid.addWidget(self.floor_lens, 3, 1)
-        grid.addWidget(QLabel("zoom / focus at the marks"), 4, 0)
+        grid.addWidget(QLabel("zoom / focus (marks)"), 4, 0)
         enc_row = QHBoxLayout()
         enc_row.addWidget(self.floor_zoom)
         enc_row.addWidget(self.floor_focus)

@@ -242,3 +242,22 @@ def test_lost_shows_only_the_last_position_dashed(qtbot, ctx) -> None:  # type: 
     with qtbot.waitSignal(page.run.finished, timeout=20000):
         page.stop_tracking()
     assert not page.canvas.overlay_lost
+
+
+def test_page_fits_1280x800_in_height_so_the_plot_axes_show(window, qtbot) -> None:  # type: ignore[no-untyped-def]
+    """At 1280 x 800 with the log dock the page must not need vertical scrolling: its bottom
+    row is the plots, whose frame axes a scrolled page cut off (the floor form's height set
+    the page's minimum before it scrolled in its own tab)."""
+    from PySide6.QtWidgets import QScrollArea
+
+    window.resize(1280, 800)
+    window.show_page("Presenter")
+    page = window.page("Presenter")
+    scroll = page.parentWidget()
+    while scroll is not None and not isinstance(scroll, QScrollArea):
+        scroll = scroll.parentWidget()
+    assert scroll is not None
+    qtbot.waitUntil(lambda: scroll.viewport().height() < 800)
+    assert page.minimumSizeHint().height() <= scroll.viewport().height()
+    assert page.minimumSizeHint().width() <= scroll.viewport().width()
+    assert page.z_plot.height() >= 120 or not page.z_plot.isVisible()
