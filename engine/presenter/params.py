@@ -23,7 +23,7 @@ PAPER_PRESET = Preset(
     velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, mode_seek=False, model_update_rate=0.0,
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100,
-    trajectory_share=0.0)
+    trajectory_share=0.0, lambda_col=0.1, reacquire_frames=1, loss_bg_weighting=1.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,7 +82,7 @@ class PresenterParams(Params):
     ring_margin_frac: float = param(0.25, lo=0.05, hi=1.0, step=0.05,
                                     help="width of that ring on each side, fraction of the "
                                     "box's width and height")
-    lambda_col: float = param(0.1, lo=0.001, hi=10.0, step=0.01,
+    lambda_col: float = param(0.15, lo=0.001, hi=10.0, step=0.01,
                               help="colour likelihood covariance lambda_col (eq. 3)")
     lambda_mot: float = param(2.0, lo=0.01, hi=100.0, step=0.1,
                               help="motion likelihood covariance lambda_mot (eq. 4)")
@@ -111,7 +111,7 @@ class PresenterParams(Params):
                                 help="contrast loss test: the colours the patches are compared "
                                 "with: 'first' = the first frame's patches, 'anchored' = the "
                                 "tracking model (model_anchor x first + the rest adapted)")
-    loss_bg_weighting: float = param(1.0, lo=0.0, hi=2.0, step=0.25,
+    loss_bg_weighting: float = param(0.5, lo=0.0, hi=2.0, step=0.25,
                                      help="contrast loss test: its reference's bins scaled by "
                                      "min(1, o*/o_b)^this, o = colours of a ring around the "
                                      "first box (as bg_weighting): what the set around the "
@@ -158,7 +158,7 @@ class PresenterParams(Params):
                                 "takes effect after a reset); 0 = off")
     reinit_particles: int = param(600, lo=10, hi=20000, step=50,
                                   help="particles of the diffuse prior while re-acquiring")
-    reacquire_frames: int = param(1, lo=1, hi=30, step=1,
+    reacquire_frames: int = param(2, lo=1, hi=30, step=1,
                                   help="consecutive frames above Pmin before the lock is declared")
     jitter_cutoff_hz: float = param(0.5, lo=0.0, hi=30.0, step=0.1,
                                     help="jitter low-pass cut-off (Hz); 0 = off. Lag behind a "
