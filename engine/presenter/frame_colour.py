@@ -27,6 +27,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from engine.arrays import u8
+from engine.presenter.likelihood import _patch_residuals, _rect_hist
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -296,95 +297,10 @@ def hard_bins(bgr: U8, roi_xyxy: tuple[int, int, int, int], step: int, n: int,
 
 
 # ----------------------------------------------------------------------------- queries
-# The same arithmetic as likelihood._add_corner / _rect_hist / _rect_b2 / _ring_similarity,
-# on the stored channels only: a bin without votes is +0.0 in every rectangle there too, and
-# adding +0.0 changes no sum, so the results are the same bit for bit. References come
-# compacted to the same channels (``RoiIntegral.compact``).
-
-
-@njit(cache=True, nogil=True)
-def _add_corner(ih: F32, u: float, v: float, sign: float, out: F64) -> None:
-    hc = ih.shape[0] - 1
-    wc = ih.shape[1] - 1
-    u = min(max(u, 0.0), float(wc))
-    v = min(max(v, 0.0), float(hc))
-    iu = min(int(u), wc - 1) if wc > 0 else 0
-    iv = min(int(v), hc - 1) if hc > 0 else 0
-    fu = u - iu
-    fv = v - iv
-    w00 = sign * (1 - fu) * (1 - fv)
-    w01 = sign * fu * (1 - fv)
-    w10 = sign * (1 - fu) * fv
-    w11 = sign * fu * fv
-    iu1 = min(iu + 1, wc)
-    iv1 = min(iv + 1, hc)
-    n00 = ih[iv, iu]
-    n01 = ih[iv, iu1]
-    n10 = ih[iv1, iu]
-    n11 = ih[iv1, iu1]
-    for k in range(out.shape[0]):
-        out[k] += w00 * n00[k] + w01 * n01[k] + w10 * n10[k] + w11 * n11[k]
-
-
-@njit(cache=True, nogil=True)
-def _rect_hist(ih: F32, cell: float, x0: float, y0: float, x1: float, y1: float,
-               out: F64) -> None:
-    out[:] = 0.0
-    _add_corner(ih, x1 / cell, y1 / cell, 1.0, out)
-    _add_corner(ih, x0 / cell, y1 / cell, -1.0, out)
-    _add_corner(ih, x1 / cell, y0 / cell, -1.0, out)
-    _add_corner(ih, x0 / cell, y0 / cell, 1.0, out)
-
-
-@njit(cache=True, nogil=True)
-def _rect_b2(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
-             img_w: int, img_h: int, px0: float, py0: float, px1: float, py1: float,
-             sqrt_ref: F64, hist: F64, outside_b2: float) -> float:
-    area = (px1 - px0) * (py1 - py0)
-    vx0 = max(px0, 0.0)
-    vy0 = max(py0, 0.0)
-    vx1 = min(px1, float(img_w))
-    vy1 = min(py1, float(img_h))
-    if area <= 0.0:
-        return 1.0
-    if vx1 - vx0 <= 0.0 or vy1 - vy0 <= 0.0:
-        return outside_b2
-    rx0 = min(max(vx0 - ox, 0.0), roi_w)
-    ry0 = min(max(vy0 - oy, 0.0), roi_h)
-    rx1 = min(max(vx1 - ox, 0.0), roi_w)
-    ry1 = min(max(vy1 - oy, 0.0), roi_h)
-    _rect_hist(ih, cell, rx0, ry0, rx1, ry1, hist)
-    nk = hist.shape[0]
-    total = 0.0
-    for k in range(nk):
-        if hist[k] < 0.0:
-            hist[k] = 0.0
-        total += hist[k]
-    if total <= 1e-9:
-        return 1.0
-    bc = 0.0
-    for k in range(nk):
-        bc += math.sqrt(hist[k] / total) * sqrt_ref[k]
-    vis = min((vx1 - vx0) * (vy1 - vy0) / area, 1.0)
-    return vis * max(1.0 - bc, 0.0) + (1.0 - vis) * outside_b2
-
-
-@njit(cache=True, nogil=True)
-def _patch_b2(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: float,
-              img_w: int, img_h: int, particles: F64, rel: F64, aspect: float,
-              sqrt_ref: F64, outside_b2: float, out: F64) -> None:
-    hist = np.empty(ih.shape[2])
-    for i in range(particles.shape[0]):
-        hh = particles[i, 2]
-        ww = hh * aspect
-        left = particles[i, 0] - 0.5 * ww
-        top = particles[i, 1] - 0.5 * hh
-        for p in range(rel.shape[0]):
-            # B_p^2, eq. (2)
-            out[i, p] = _rect_b2(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h,
-                                 left + rel[p, 0] * ww, top + rel[p, 1] * hh,
-                                 left + rel[p, 2] * ww, top + rel[p, 3] * hh, sqrt_ref[p],
-                                 hist, outside_b2)
+# The query kernels are likelihood's own (_rect_hist, _patch_residuals), run on the stored
+# channels only: a bin without votes is +0.0 in every rectangle there too, and adding +0.0
+# changes no sum, so the results are the same bit for bit. References come compacted to the
+# same channels (``RoiIntegral.compact``).
 
 
 @njit(cache=True, nogil=True)
@@ -434,8 +350,8 @@ def _colour_b2(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: 
     n_part = particles.shape[0]
     n_patch = rel.shape[0]
     b2 = np.empty((n_part, n_patch))
-    _patch_b2(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h, particles, rel, aspect, sqrt_ref,
-              1.0, b2)
+    _patch_residuals(ih, cell, ox, oy, roi_w, roi_h, img_w, img_h, particles, rel, aspect,
+                     sqrt_ref, 1.0, b2)
     out = np.empty(n_part)
     inner = np.empty(ih.shape[2])
     outer = np.empty(ih.shape[2])
@@ -473,7 +389,7 @@ def patch_b2(ri: RoiIntegral, particles_xyh: F64, rel_boxes: F64, aspect: float,
     ox, oy, rw, rh = ri.roi_xywh
     parts = np.ascontiguousarray(particles_xyh, dtype=np.float64)
     out = np.empty((parts.shape[0], rel_boxes.shape[0]))
-    _patch_b2(ri.integral, float(ri.cell), float(ox), float(oy), float(rw), float(rh),
-              int(ri.image_wh[0]), int(ri.image_wh[1]), parts, rel_boxes, float(aspect),
-              ri.compact(sqrt_ref), float(outside_b2), out)
+    _patch_residuals(ri.integral, float(ri.cell), float(ox), float(oy), float(rw), float(rh),
+                     int(ri.image_wh[0]), int(ri.image_wh[1]), parts, rel_boxes, float(aspect),
+                     ri.compact(sqrt_ref), float(outside_b2), out)
     return out

@@ -228,9 +228,12 @@ def _add_corner(ih: F32, u: float, v: float, sign: float, out: F64) -> None:
     w11 = sign * fu * fv
     iu1 = min(iu + 1, wc)
     iv1 = min(iv + 1, hc)
+    n00 = ih[iv, iu]
+    n01 = ih[iv, iu1]
+    n10 = ih[iv1, iu]
+    n11 = ih[iv1, iu1]
     for b in range(out.shape[0]):
-        out[b] += (w00 * ih[iv, iu, b] + w01 * ih[iv, iu1, b]
-                   + w10 * ih[iv1, iu, b] + w11 * ih[iv1, iu1, b])
+        out[b] += w00 * n00[b] + w01 * n01[b] + w10 * n10[b] + w11 * n11[b]
 
 
 @njit(cache=True, nogil=True)
