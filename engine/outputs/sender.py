@@ -870,6 +870,7 @@ class OutputSet:
                 cfg = self._config
                 targets = list(self._targets)
                 faulted = self._faulted
+            firing = False
             try:
                 now = time.monotonic()
                 arrived = False
@@ -886,7 +887,9 @@ class OutputSet:
                     due = clock.due
                     fresh = self._fresh
                     newest = self._newest
+                    firing = True
                     self._tick(now, cfg, targets, faulted)
+                    firing = False
                     clock.fired(now)
                     self._prepare(cfg, targets, faulted)
                     self.slot_timings.append(SlotTiming(
@@ -899,6 +902,8 @@ class OutputSet:
             except Exception as exc:  # never let one bad sample kill the sender
                 self.encode_errors += 1
                 self.last_encode_error = f"{type(exc).__name__}: {exc}"
+                if firing:  # the slot is spent: retrying it at once would spin a core
+                    clock.fired(time.monotonic())
             finally:
                 with self._cond:
                     self._busy = False

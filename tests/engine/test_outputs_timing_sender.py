@@ -134,3 +134,22 @@ def test_mark_lost_resends_last_pose_flagged_lost():
     assert a["tracker"]["status"] == "TRACKING"
     assert b["tracker"]["status"] == "LOST"
     assert a["transforms"] == b["transforms"]
+
+
+def test_a_slot_that_fails_to_encode_is_spent_not_retried_in_a_hot_loop(monkeypatch):
+    # A clocked slot whose encoding raises is counted as an encode error and its slot is
+    # spent: the sender waits for the next slot instead of retrying the same one at once
+    # (a hot loop that, at the sender's real-time priority, takes a core and half the GIL).
+    from engine.outputs import sender as sender_mod
+
+    def broken(self, *a, **k):  # type: ignore[no-untyped-def]
+        raise ValueError("cannot encode")
+
+    monkeypatch.setattr(sender_mod.OutputSet, "_tick", broken)
+    cfg = OutputConfig(targets=(TargetSpec("freed", "127.0.0.1", 9),))
+    with OutputSet(cfg, rate_hz=50.0) as out:
+        out.submit(OutputSample(0, 0.0, "TRACKING", _pose(0.0).T_studio_cam()))
+        time.sleep(0.5)
+        errors = out.stats().encode_errors
+    assert 1 <= errors <= 40  # about one per slot at 50 Hz over 0.5 s, not thousands
+    assert "cannot encode" in out.stats().last_encode_error
