@@ -89,6 +89,11 @@ class DenseParams(Params):
                                   help="points of the geometric term, spread over all valid "
                                   "depth (walls and floors too; as many as the photometric "
                                   "term by default); 0: the photometric points")
+    geometric_noise_model: bool = param(True,
+                                        help="each point-to-plane residual in units of its "
+                                        "depth noise, sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2 m "
+                                        "(Kinect v1, Nguyen 2012 eq. 3: far points are noisier, "
+                                        "~z^2); off: every point alike")
     compensate_depth_delay: bool = param(True,
                                          help="move reference points by the camera motion "
                                          "between the depth and colour timestamps "
@@ -159,7 +164,8 @@ class DenseParams(Params):
             n_points=8192, iterations_coarse=2, iterations_mid=3, iterations_fine=10,
             scale_over_kept=False, min_residual_scale=0.0, edge_depth_ratio=0.0,
             brightness_offset=False, brightness_gain=False, stop_px=0.0,
-            coarse_point_fraction=1.0, geometric_weight=0.0, compensate_depth_delay=False,
+            coarse_point_fraction=1.0, geometric_weight=0.0, geometric_noise_model=False,
+            compensate_depth_delay=False,
             motion_model=False,
         ),
     }

@@ -78,6 +78,27 @@ def full_rays(intr: Intrinsics) -> F64:
     return out
 
 
+def depth_sigma_m(z_m: F64) -> F64:
+    """Axial depth noise std (m) of a disparity-based depth sensor at depth ``z_m``: the
+    Kinect v1 model sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2 (Nguyen, Izadi, Lovell 2012,
+    "Modeling Kinect sensor noise", eq. 3; quadratic in z as for any sensor measuring
+    disparity, Khoshelham and Elberink 2012)."""
+    return 0.0012 + 0.0019 * (np.asarray(z_m, dtype=np.float64) - 0.4) ** 2
+
+
+def geometric_noise_weights(z_m: F64) -> F64:
+    """Per point factor 1 / sigma(z) of :func:`depth_sigma_m`, relative to the points'
+    median depth (1 there): multiplying a point-to-plane residual by it makes every residual
+    of the geometric term one of the same noise (the depth noise along the ray, which the
+    normal projects; the reference and the current depth of a point lie at about the same
+    distance, so one factor serves both). The term's robust scale is then the median over
+    these normalised residuals."""
+    z = np.asarray(z_m, dtype=np.float64)
+    if z.size == 0:
+        return z
+    return depth_sigma_m(np.median(z, keepdims=True)) / depth_sigma_m(z)
+
+
 def _normals(depth: F32, intr: Intrinsics, uf: NDArray[np.int64], vf: NDArray[np.int64],
              P: F64, step: int = 2, max_jump: float = 0.05, planarity: float = 3.0) -> F64:
     """Unit surface normals (pointing at the camera) at full-resolution pixels ``(uf, vf)``
@@ -184,7 +205,8 @@ class Reference:
     intrinsics: Intrinsics
     n_requested: int
     z_median_m: float = 1.0  # median depth of the points (convergence test scale)
-    normals: F32 | None = None  # (3, n) unit normals (0: none), for the geometric term
+    normals: F32 | None = None  # (3, ng) unit normals (0: none; times the point's
+    # noise weight with geometric_noise_model), for the geometric term
     Jg: F32 | None = None  # (6, ng) Jacobian of the point-to-plane residual (inverse comp.)
     Pg: F32 | None = None  # (3, ng) points of the geometric term (with ``normals``)
 
@@ -210,6 +232,7 @@ def build_reference(
     T_color_depth: F64 | None = None,
     with_normals: bool = False,
     geometric_points: int = 0,
+    geometric_noise_model: bool = False,
 ) -> Reference:
     """Select the ``n_points`` strongest-gradient points with valid depth (sec. 4.5, eq. (14))
     and precompute c* and the Jacobian of eq. (6) at every level.
@@ -217,7 +240,9 @@ def build_reference(
     ``with_normals``: also the points of the optional geometric term with their surface
     normals and point-to-plane Jacobian: ``geometric_points`` > 0 of their own, spread evenly
     over every pixel with valid, non-edge depth and a normal (flat walls and floors constrain
-    the geometry as much as textured edges do), else the photometric points themselves."""
+    the geometry as much as textured edges do), else the photometric points themselves.
+    ``geometric_noise_model``: each normal is scaled by :func:`geometric_noise_weights` of its
+    point's depth (the residual in units of its depth noise; ``normals`` are then not unit)."""
     from engine.dense import kernels
 
     intr = pre.intrinsics
@@ -272,6 +297,11 @@ def build_reference(
         P = P @ T_color_depth[:3, :3].T + T_color_depth[:3, 3]
     P32 = np.ascontiguousarray(P.T, dtype=np.float32)
     N32 = Jg = Pg32 = None
+    if Pg is not None and N is not None and geometric_noise_model:
+        # inverse-noise weighting of the point-to-plane residual (an extension): the residual
+        # r = n . (T^-1 Q - P) and its Jacobian are linear in n, so scaling n by the point's
+        # 1 / sigma(z) scales both (the kernels need no other input)
+        N = N * geometric_noise_weights(Pg[:, 2])[:, None]
     if Pg is not None and N is not None:
         N32 = np.ascontiguousarray(N.T, dtype=np.float32)
         Pg32 = np.ascontiguousarray(Pg.T, dtype=np.float32)

@@ -139,7 +139,7 @@ class _DenseBase:
         old, self._params, self._pending = self._params, self._pending, None
         def key(p: DenseParams) -> tuple[object, ...]:
             return (p.n_points, p.min_depth_m, p.max_depth_m, p.edge_depth_ratio,
-                    p.geometric_weight > 0, p.geometric_points)
+                    p.geometric_weight > 0, p.geometric_points, p.geometric_noise_model)
 
         return key(old) != key(self._params)
 
@@ -163,6 +163,7 @@ class _DenseBase:
             max_edge_depth_ratio=p.edge_depth_ratio,
             T_color_depth=self._depth_delay_transform(frame),
             with_normals=p.geometric_weight > 0, geometric_points=p.geometric_points,
+            geometric_noise_model=p.geometric_noise_model,
         )
 
     def _note_good_pose(

@@ -308,6 +308,41 @@ def test_separate_geometric_points_spread_over_the_depth_and_align() -> None:
     assert np.degrees(rotation_angle_rad(D[:3, :3])) < 0.05
 
 
+def test_geometric_noise_model_weights_residuals_by_the_depth_noise() -> None:
+    """``geometric_noise_model``: each point-to-plane normal (so its residual and Jacobian)
+    is scaled by sigma(z_median) / sigma(z) of the Kinect model: 1 at the median depth, lower
+    for farther (noisier) points; the alignment on exact depth keeps its accuracy."""
+    z = np.array([0.8, 1.2, 2.5, 4.0])
+    w = ph.geometric_noise_weights(z)
+    sig = ph.depth_sigma_m(z)
+    np.testing.assert_allclose(w * sig, w[0] * sig[0])  # w ~ 1 / sigma(z)
+    assert np.all(np.diff(w) < 0)
+    assert ph.geometric_noise_weights(np.array([1.0, 1.0, 1.0]))[0] == 1.0
+    assert ph.depth_sigma_m(np.array([0.4]))[0] == 0.0012  # Nguyen 2012 eq. 3 at 0.4 m
+    intr = small_intrinsics(distorted=True)
+    scene = PlaneScene(intr, room_scale=0.45)
+    T_world_cur = se3_exp(np.array([0.012, -0.006, 0.01, 0.012, -0.01, 0.006]))
+    g0, d0 = scene.render(np.eye(4))
+    g1, d1 = scene.render(T_world_cur)
+    pre0 = ph.preprocess(g0.astype(np.float32), d0, intr)
+    plain = ph.build_reference(pre0, 2048, with_normals=True, geometric_points=3000)
+    ref = ph.build_reference(pre0, 2048, with_normals=True, geometric_points=3000,
+                             geometric_noise_model=True)
+    assert ref.Pg is not None
+    assert ref.normals is not None
+    assert plain.normals is not None
+    assert np.array_equal(ref.Pg, plain.Pg)
+    np.testing.assert_allclose(np.linalg.norm(ref.normals, axis=0),
+                               ph.geometric_noise_weights(ref.Pg[2].astype(np.float64)),
+                               rtol=1e-5)
+    res = ph.align(ref, ph.preprocess(g1.astype(np.float32), d1, intr), np.eye(4), (10, 3, 2),
+                   brightness_offset=True, geo_weight=3.0)
+    assert res.ok
+    D = invert(invert(T_world_cur)) @ res.T_cur_ref
+    assert np.linalg.norm(D[:3, 3]) < 0.5e-3
+    assert np.degrees(rotation_angle_rad(D[:3, :3])) < 0.05
+
+
 def test_depth_delay_compensation_moves_by_the_velocity_over_the_gap() -> None:
     """Depth-delay compensation: T_color_depth = exp(xi (t_depth - t_colour)) with the body
     twist per second of the last good frames; off, or without a depth time: none."""
