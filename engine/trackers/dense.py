@@ -17,13 +17,14 @@ gives both (``compensate_depth_delay``, TUM); points on depth discontinuities ar
 a level's iterations stop once an update moves the image by less than ``stop_px`` (the counts
 become caps: 12 instead of 15 iterations on the rail, the same accuracy); the coarse
 levels use half and a quarter of the points (``coarse_point_fraction``); a point-to-plane
-depth residual is added to the photometric cost at the finest level (``geometric_weight`` 1,
+depth residual is added to the photometric cost at the finest level (``geometric_weight`` 2,
 as in the authors' follow-up "direct ICP", with 8192 points of its own over all valid depth:
 ``geometric_points``; each term in units of its own robust scale, ``min_geometric_scale_m``
-only a guard against zero). On TUM fr1_xyz it brings ``dense`` from ATE 5.3 to 3.9 mm (RPE
-7.4 both); on the noise-free built-in studio (rail with presenter, hand-held, pan) it lowers
-every error; with Kinect-like depth noise at studio distances its robust scale is large and
-it changes little; about 1.35x the CPU per frame.
+only a guard against zero; each point-to-plane residual in units of its depth noise, the
+Kinect model sigma(z) ~ z^2: ``geometric_noise_model``). On TUM fr1_xyz it brings ``dense``
+from ATE 5.3 to 2.9 mm (RPE 7.4 -> 7.6 mm/s); on the noise-free built-in studio (rail with
+presenter, hand-held, pan) it lowers every error; with Kinect-like depth noise at studio
+distances its robust scale is large and it changes less; about 1.35x the CPU per frame.
 Off by default (measured on TUM fr1_xyz and the studio rail without a clear gain, see
 ``studiotrack bench dense``): an affine brightness model (``brightness_gain``).
 """
