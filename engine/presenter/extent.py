@@ -44,8 +44,10 @@ def measure_extent(bgr: NDArray[np.uint8], gains: F64 | None, xyh: F64, aspect: 
                    top_skip_frac: float = 0.25,
                    bg_from_frac: float = 1.2, col_frac: float = 0.15,
                    max_gap_px: float = 8.0, w_min_frac: float = 0.7,
-                   w_max_frac: float = 2.2) -> tuple[float, float] | None:
-    """(centre x, width) of the foreground around the estimate, or None if not measurable."""
+                   w_max_frac: float = 2.2,
+                   lut: NDArray[np.uint8] | None = None) -> tuple[float, float] | None:
+    """(centre x, width) of the foreground around the estimate, or None if not measurable
+    (``lut``: ``frame_colour.gain_lut(gains)`` when the caller has made it)."""
     H, W = bgr.shape[:2]
     x, y, h = (float(v) for v in xyh)
     w0 = h * aspect
@@ -55,7 +57,8 @@ def measure_extent(bgr: NDArray[np.uint8], gains: F64 | None, xyh: F64, aspect: 
     xa, xb = int(max(x - search_frac * w0, 0)), int(min(x + search_frac * w0, W))
     if y1 - y0 < 4 or xb - xa < 4:
         return None
-    bins = hard_bins(bgr, (xa, y0, xb, y1), STEP, n_bins, gains, S_MIN_DEFAULT, V_MIN_DEFAULT)
+    bins = hard_bins(bgr, (xa, y0, xb, y1), STEP, n_bins, gains, S_MIN_DEFAULT, V_MIN_DEFAULT,
+                     lut)
     got = _extent(bins, float(xa), float(x), w0, np.ascontiguousarray(fg_hist, np.float64),
                   bg_from_frac, col_frac, max(int(max_gap_px / STEP), 1), w_min_frac,
                   w_max_frac)

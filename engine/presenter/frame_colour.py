@@ -148,10 +148,29 @@ def _roi_integral(bgr: U8, x0: int, y0: int, x1: int, y1: int, step: int, cell: 
     wc = (W + cell - 1) // cell
     nb = n * n + n
     h0s, h1s, ahs, s0s, s1s, ass, hbs, sbs, vbs = _bin_tables(n)
-    # pass 1: per pixel its hue and saturation (a chromatic pixel) or its brightness bin
-    # (-1 - bin), and which bins get votes
-    code_h = np.empty((H, W), np.int32)
-    code_s = np.empty((H, W), np.int32)
+    # the bilinear votes' factors of likelihood._binned_integral, per hue and saturation
+    # value: its vote inc * (1 - ah) * (1 - as) is (inc * (1 - ah)) * (1 - as), the same
+    # products in the same order
+    wh0 = np.empty(180)
+    wh1 = np.empty(180)
+    for h in range(180):
+        wh0[h] = inc * (1.0 - ahs[h])
+        wh1[h] = inc * ahs[h]
+    ws0 = np.empty(256)
+    ws1 = np.empty(256)
+    # saturation bin pairs: (0, 0), (k, k + 1) for k < n - 1, (n - 1, n - 1): 0..n
+    spair = np.empty(256, np.int64)
+    for v in range(256):
+        ws0[v] = 1.0 - ass[v]
+        ws1[v] = ass[v]
+        if s1s[v] == s0s[v]:
+            spair[v] = 0 if s0s[v] == 0 else n
+        else:
+            spair[v] = s0s[v] + 1
+    # pass 1: per pixel one code, h * 256 + s for a chromatic pixel, -1 - its brightness bin
+    # for a grey one; which (hue, saturation pair) and brightness bins occur
+    code = np.empty((H, W), np.int32)
+    seen = np.zeros(180 * (n + 1), np.bool_)
     hit = np.zeros(nb, np.bool_)
     for y in range(H):
         yy = y0 + y * step
@@ -160,58 +179,73 @@ def _roi_integral(bgr: U8, x0: int, y0: int, x1: int, y1: int, step: int, cell: 
             h, s, v = _hsv(int(lut[bgr[yy, xx, 0], 0]), int(lut[bgr[yy, xx, 1], 1]),
                            int(lut[bgr[yy, xx, 2], 2]), sdiv, hdiv)
             if s >= s_min and v >= v_min:
-                code_h[y, x] = h
-                code_s[y, x] = s
+                code[y, x] = h * 256 + s
                 if soft:
-                    hit[h0s[h] * n + s0s[s]] = True
-                    hit[h0s[h] * n + s1s[s]] = True
-                    hit[h1s[h] * n + s0s[s]] = True
-                    hit[h1s[h] * n + s1s[s]] = True
+                    seen[h * (n + 1) + spair[s]] = True
                 else:
                     hit[hbs[h] * n + sbs[s]] = True
             else:
-                code_h[y, x] = -1 - vbs[v]
+                code[y, x] = -1 - vbs[v]
                 hit[vbs[v]] = True
+    if soft:
+        # the four bins each seen (hue, saturation pair) votes for
+        for h in range(180):
+            for sp in range(n + 1):
+                if seen[h * (n + 1) + sp]:
+                    s0 = 0 if sp == 0 else (n - 1 if sp == n else sp - 1)
+                    s1 = s0 if sp == 0 or sp == n else s0 + 1
+                    hit[h0s[h] * n + s0] = True
+                    hit[h0s[h] * n + s1] = True
+                    hit[h1s[h] * n + s0] = True
+                    hit[h1s[h] * n + s1] = True
     used = np.flatnonzero(hit)
     chan = np.full(nb, -1, np.int64)
     for k in range(used.shape[0]):
         chan[used[k]] = k
-    # pass 2: the votes (likelihood._binned_integral's, in its order), one channel per used bin
+    # pass 2: the votes (likelihood._binned_integral's, in its order), one channel per used
+    # bin; each row of cells is zeroed just before its first votes and summed into the
+    # integral (the same recurrence, row by row) as soon as its last pixel row is in
     nk = used.shape[0]
-    out = np.zeros((hc + 1, wc + 1, nk), np.float32)
+    out = np.empty((hc + 1, wc + 1, nk), np.float32)
+    out[0] = 0.0
     for y in range(H):
         cy = y // cell + 1
+        if y % cell == 0:
+            out[cy] = 0.0
         for cx in range(1, wc + 1):
             cell_hist = out[cy, cx]
             for x in range((cx - 1) * cell, min(cx * cell, W)):
-                h = code_h[y, x]
-                if h < 0:
-                    cell_hist[chan[-1 - h]] += inc
+                c = code[y, x]
+                if c < 0:
+                    cell_hist[chan[-1 - c]] += inc
                     continue
-                s = code_s[y, x]
+                h = c >> 8
+                s = c & 255
                 if soft:
-                    ah = ahs[h]
-                    a_s = ass[s]
                     h0 = h0s[h] * n
                     h1 = h1s[h] * n
                     s0 = s0s[s]
                     s1 = s1s[s]
-                    cell_hist[chan[h0 + s0]] += inc * (1.0 - ah) * (1.0 - a_s)
-                    cell_hist[chan[h0 + s1]] += inc * (1.0 - ah) * a_s
-                    cell_hist[chan[h1 + s0]] += inc * ah * (1.0 - a_s)
-                    cell_hist[chan[h1 + s1]] += inc * ah * a_s
+                    a0 = wh0[h]
+                    a1 = wh1[h]
+                    b0 = ws0[s]
+                    b1 = ws1[s]
+                    cell_hist[chan[h0 + s0]] += a0 * b0
+                    cell_hist[chan[h0 + s1]] += a0 * b1
+                    cell_hist[chan[h1 + s0]] += a1 * b0
+                    cell_hist[chan[h1 + s1]] += a1 * b1
                 else:
                     cell_hist[chan[hbs[h] * n + sbs[s]]] += inc
-    for cy in range(1, hc + 1):
-        row = out[cy]
-        above = out[cy - 1]
-        for cx in range(1, wc + 1):
-            r = row[cx]
-            left = row[cx - 1]
-            a = above[cx]
-            al = above[cx - 1]
-            for k in range(nk):
-                r[k] += a[k] + left[k] - al[k]
+        if y % cell == cell - 1 or y == H - 1:
+            row = out[cy]
+            above = out[cy - 1]
+            for cx in range(1, wc + 1):
+                r = row[cx]
+                left = row[cx - 1]
+                a = above[cx]
+                al = above[cx - 1]
+                for k in range(nk):
+                    r[k] += a[k] + left[k] - al[k]
     return out, used
 
 
@@ -257,13 +291,15 @@ class RoiIntegral:
 
 def roi_integral(bgr: U8, roi_xyxy: tuple[int, int, int, int], step: int, cell: int, n: int,
                  gains: F64 | None, s_min: int, v_min: int, pixel_weight: float,
-                 soft: bool) -> tuple[F32, I64]:
+                 soft: bool, lut: U8 | None = None) -> tuple[F32, I64]:
     """``likelihood.binned_integral`` of ``cvtColor(apply_gains(bgr[y0:y1:step,
     x0:x1:step], gains), BGR2HSV)`` (``cell`` in subsampled pixels) without the copies,
-    stored for the bins with votes: (integral (rows+1, cols+1, K), used (K,) bin indices)."""
+    stored for the bins with votes: (integral (rows+1, cols+1, K), used (K,) bin indices).
+    ``lut``: ``gain_lut(gains)`` when the caller has made it already (once per frame)."""
     x0, y0, x1, y1 = roi_xyxy
     return _roi_integral(bgr, int(x0), int(y0), int(x1), int(y1), max(int(step), 1),
-                         max(int(cell), 1), gain_lut(gains), SDIV, HDIV, int(n), int(s_min),
+                         max(int(cell), 1), gain_lut(gains) if lut is None else lut, SDIV,
+                         HDIV, int(n), int(s_min),
                          int(v_min), np.float32(pixel_weight), bool(soft))
 
 
@@ -288,12 +324,14 @@ def _hard_bins(bgr: U8, x0: int, y0: int, x1: int, y1: int, step: int, lut: U8, 
 
 
 def hard_bins(bgr: U8, roi_xyxy: tuple[int, int, int, int], step: int, n: int,
-              gains: F64 | None, s_min: int, v_min: int) -> NDArray[np.int32]:
+              gains: F64 | None, s_min: int, v_min: int,
+              lut: U8 | None = None) -> NDArray[np.int32]:
     """``likelihood.bin_map(cvtColor(apply_gains(bgr[y0:y1:step, x0:x1:step], gains)))``:
-    each pixel's hard bin, in one pass."""
+    each pixel's hard bin, in one pass (``lut``: ``gain_lut(gains)`` if made already)."""
     x0, y0, x1, y1 = roi_xyxy
     return _hard_bins(bgr, int(x0), int(y0), int(x1), int(y1), max(int(step), 1),
-                      gain_lut(gains), SDIV, HDIV, int(n), int(s_min), int(v_min))
+                      gain_lut(gains) if lut is None else lut, SDIV, HDIV, int(n), int(s_min),
+                      int(v_min))
 
 
 # ----------------------------------------------------------------------------- queries

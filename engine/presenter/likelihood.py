@@ -447,6 +447,35 @@ def motion_residuals(motion_integral: NDArray[np.int32], particles_xyh: F64, rel
                              float(scale))
 
 
+@njit(cache=True, nogil=True)
+def _motion_update(gray: NDArray[np.uint8], step: int, prev: NDArray[np.uint8],
+                   mhi_prev: NDArray[np.uint8], threshold: int, duration: int,
+                   mhi: NDArray[np.uint8], S: NDArray[np.int32]) -> None:
+    # one pass over gray[::step, ::step]: the saturating decay, |g - prev| > threshold sets
+    # the duration (cv2.absdiff, cv2.subtract, the masked set), prev updated in place, and S
+    # the integral image of mhi > 0 (cv2.integral, CV_32S)
+    H, W = prev.shape
+    for x in range(W + 1):
+        S[0, x] = 0
+    for y in range(H):
+        S[y + 1, 0] = 0
+        run = 0
+        for x in range(W):
+            g = gray[y * step, x * step]
+            # signed differences (int() of a uint8 is unsigned in numba)
+            d = abs(np.int64(g) - np.int64(prev[y, x]))
+            m = np.int64(mhi_prev[y, x]) - 1
+            if m < 0:
+                m = np.int64(0)
+            if d > threshold:
+                m = np.int64(duration)
+            mhi[y, x] = m
+            prev[y, x] = g
+            if m > 0:
+                run += 1
+            S[y + 1, x + 1] = S[y, x + 1] + run
+
+
 class MotionHistory:
     """Absolute motion history image z_mot (Bobick & Davis, the paper's ref. [8]).
 
@@ -459,22 +488,30 @@ class MotionHistory:
         self.threshold = int(threshold)
         self._prev: NDArray[np.uint8] | None = None
         self.mhi: NDArray[np.uint8] | None = None
+        self._integral: NDArray[np.int32] | None = None  # of mhi > 0, made by update()
 
     def reset(self) -> None:
         self._prev = None
         self.mhi = None
+        self._integral = None
 
-    def update(self, gray_u8: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        """Feed one grey frame; returns the motion history image (uint8, 0 = no motion)."""
-        if self._prev is None or self._prev.shape != gray_u8.shape or self.mhi is None:
-            self._prev = gray_u8.copy()
-            self.mhi = np.zeros_like(gray_u8)
+    def update(self, gray_u8: NDArray[np.uint8], step: int = 1) -> NDArray[np.uint8]:
+        """Feed one grey frame, ``gray_u8[::step, ::step]`` (any strides: a colour frame's
+        channel view needs no copy); returns the motion history image (uint8, 0 = no
+        motion), a new array every frame."""
+        step = max(int(step), 1)
+        shape = ((gray_u8.shape[0] + step - 1) // step, (gray_u8.shape[1] + step - 1) // step)
+        if self._prev is None or self._prev.shape != shape or self.mhi is None:
+            self._prev = np.ascontiguousarray(gray_u8[::step, ::step])
+            self.mhi = np.zeros(shape, np.uint8)
+            self._integral = np.zeros((shape[0] + 1, shape[1] + 1), np.int32)
             return self.mhi
-        diff = cv2.absdiff(gray_u8, self._prev)
-        mhi = u8(cv2.subtract(self.mhi, np.array([1.0])))  # saturating decay (scalar 1)
-        mhi[diff > self.threshold] = np.uint8(min(self.duration_frames, 255))
+        mhi = np.empty(shape, np.uint8)
+        integral = np.empty((shape[0] + 1, shape[1] + 1), np.int32)
+        _motion_update(gray_u8, step, self._prev, self.mhi, self.threshold,
+                       min(self.duration_frames, 255), mhi, integral)
         self.mhi = mhi
-        self._prev = gray_u8.copy()
+        self._integral = integral
         return mhi
 
     def motion_integral(self, recent_frames: int = 0) -> NDArray[np.int32]:
@@ -484,6 +521,8 @@ class MotionHistory:
         if recent_frames > 0:
             floor = max(min(self.duration_frames, 255) - recent_frames, 0)
             mask = (self.mhi > floor).astype(np.uint8)
+        elif self._integral is not None:
+            return self._integral  # made with the motion history image by update()
         else:
             mask = (self.mhi > 0).astype(np.uint8)
         return i32(cv2.integral(mask, sdepth=cv2.CV_32S))

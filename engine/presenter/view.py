@@ -58,6 +58,7 @@ from engine.arrays import u8
 from engine.particles import systematic_resample
 from engine.presenter import filter as pf
 from engine.presenter import frame_colour as fc
+from engine.presenter import step_kernels as sk
 from engine.presenter.extent import measure_extent
 from engine.presenter.jitter import JitterFilter
 from engine.presenter.likelihood import (
@@ -157,6 +158,11 @@ class ViewTracker:
         self._bin_w: F64 | None = None  # background weights of the reference bins (BWH)
         self._rel = np.ascontiguousarray(model.rel_boxes)
         self._gains: F64 | None = None
+        self._lut = fc.IDENTITY_LUT  # this frame's gain table (fc.gain_lut(self._gains))
+        self._bin_w_pow: dict[float, F64] = {}  # bin_w ** exponent, made once each
+        self._loss_ref_key: tuple[Any, ...] | None = None  # what _sqrt_ref0 was made from
+        self._fg_of: Any = None  # the _sqrt_ref the fit_width foreground was pooled from
+        self._fg: F64 | None = None
         self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(self._hist0))  # fixed: loss test
         rel = self._rel
         area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
@@ -207,13 +213,8 @@ class ViewTracker:
         the integral context for re-use."""
         H, W = bgr.shape[:2]
         p = self.params
-        hs = states[:, 2]
-        ws = hs * self.model.aspect
         grow = 1.0 + (2.0 * p.ring_margin_frac if p.ring_weight > 0 else 0.0)
-        x0 = int(max(math.floor(np.min(states[:, 0] - grow * ws / 2)) - 1, 0))
-        y0 = int(max(math.floor(np.min(states[:, 1] - grow * hs / 2)) - 1, 0))
-        x1 = int(min(math.ceil(np.max(states[:, 0] + grow * ws / 2)) + 1, W))
-        y1 = int(min(math.ceil(np.max(states[:, 1] + grow * hs / 2)) + 1, H))
+        x0, y0, x1, y1 = sk.roi_bounds(states, self.model.aspect, grow, W, H)
         ctx = None
         if x1 - x0 < 1 or y1 - y0 < 1:
             b2 = np.full(len(states), float(len(self._rel)))
@@ -240,7 +241,7 @@ class ViewTracker:
         x0, y0, x1, y1 = roi_xyxy
         integral, used = fc.roi_integral(bgr, roi_xyxy, step, cell // step, self.model.n_bins,
                                          self._gains, S_MIN_DEFAULT, V_MIN_DEFAULT,
-                                         float(step * step), SOFT_DEFAULT)
+                                         float(step * step), SOFT_DEFAULT, self._lut)
         return fc.RoiIntegral(integral, used, n_bins_total(self.model.n_bins), cell,
                               (x0, y0, x1 - x0, y1 - y0), (bgr.shape[1], bgr.shape[0]))
 
@@ -267,7 +268,7 @@ class ViewTracker:
         hs_, ws_ = (H + step - 1) // step, (W + step - 1) // step
         integral, used = fc.roi_integral(bgr, (0, 0, W, H), step, cell, self.model.n_bins,
                                          self._gains, S_MIN_DEFAULT, V_MIN_DEFAULT,
-                                         float(step * step), SOFT_DEFAULT)
+                                         float(step * step), SOFT_DEFAULT, self._lut)
         ctx = fc.RoiIntegral(integral, used, n_bins_total(self.model.n_bins), cell,
                              (0, 0, ws_, hs_), (ws_, hs_))
         rng = self._bg_rng
@@ -319,35 +320,31 @@ class ViewTracker:
         self.motion_margin = moving - self._motion_bg
         return self.motion_margin > self.params.loss_motion
 
-    def _loss_z(self, ctx: Any, xyh: F64) -> float:
+    def _loss_z(self, ctx: Any, xyh: F64, fixed: F64 | None = None) -> float:
         """z = median over the patches of (B_p^2 - mu_p) / (beta_p - mu_p) at ``xyh`` (NaN
         before mu is known): one patch that changes (a turn, background between the legs, a
-        hand in front) does not decide, all of them on the background do."""
+        hand in front) does not decide, all of them on the background do. ``fixed``: the
+        B_p^2 against the loss test's reference at ``xyh`` if computed already."""
         if ctx is None:
             return float("nan")
-        r = np.asarray(self._fixed_residual(ctx, xyh[None, :])[0], dtype=np.float64)
+        r = fixed if fixed is not None else np.asarray(
+            self._fixed_residual(ctx, xyh[None, :])[0], dtype=np.float64)
         self._last_fixed = r
         if self._mu is None or self._beta is None:
             return float("nan")
         zp = (r - self._mu) / np.maximum(self._beta - self._mu, 0.05)
-        return float(np.median(zp))
+        return sk.median_small(zp)
 
     def _patch_hists(self, ctx: Any, xyh: F64) -> F64 | None:
         """Normalised patch histograms at one state from the frame's integral (None if a
         patch is not wholly inside the image)."""
         ox, oy, _rw, _rh = ctx.roi_xywh
         W, H = ctx.image_wh
-        boxes = self.model.boxes_at(float(xyh[0]), float(xyh[1]), float(xyh[2]))[1:]
-        out = np.empty((len(boxes), ctx.n_bins_total))
-        for k, (x, y, w, h) in enumerate(boxes):
-            if x < 0 or y < 0 or x + w > W or y + h > H:
-                return None
-            c = np.maximum(ctx.rect_counts((x - ox, y - oy, w, h)), 0.0)
-            total = c.sum()
-            if total <= 0:
-                return None
-            out[k] = c / total
-        return out
+        out = np.empty((len(self._rel), ctx.n_bins_total))
+        ok = sk.patch_hists(ctx.integral, float(ctx.cell), float(ox), float(oy), int(W), int(H),
+                            float(xyh[0]), float(xyh[1]), float(xyh[2]), self._rel,
+                            float(self.model.aspect), ctx.used, int(ctx.n_bins_total), out)
+        return out if ok else None
 
     def _update_model(self, ctx: Any, mean: F64) -> None:
         """Slow blend of the reference histograms towards the estimate's, anchored to the
@@ -368,16 +365,29 @@ class ViewTracker:
         # the loss test's reference: the first frame's patches (or the anchored model), with
         # the colours common around the first box scaled down - a box-split patch is much
         # background (the wall beside the head, the desk between the legs), and a reference
-        # made of background matches an empty set
-        loss_ref = self._hist0 if p.loss_reference == "first" else ref
-        if self._bin_w is not None and p.loss_bg_weighting > 0:
-            loss_ref = loss_ref * self._bin_w ** p.loss_bg_weighting
-            loss_ref = loss_ref / np.maximum(loss_ref.sum(axis=1, keepdims=True), 1e-12)
-        self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(loss_ref))
+        # made of background matches an empty set. From the first frame's patches it is the
+        # same every frame: made again only when what it is made of changes
+        key = (p.loss_reference, p.loss_bg_weighting, id(self._bin_w))
+        if p.loss_reference != "first" or key != self._loss_ref_key:
+            loss_ref = self._hist0 if p.loss_reference == "first" else ref
+            if self._bin_w is not None and p.loss_bg_weighting > 0:
+                loss_ref = loss_ref * self._bin_w_power(p.loss_bg_weighting)
+                loss_ref = loss_ref / np.maximum(loss_ref.sum(axis=1, keepdims=True), 1e-12)
+            self._sqrt_ref0 = np.ascontiguousarray(np.sqrt(loss_ref))
+            self._loss_ref_key = key
         if self._bin_w is not None and p.bg_weighting > 0:
-            ref = ref * self._bin_w ** p.bg_weighting
+            ref = ref * self._bin_w_power(p.bg_weighting)
             ref /= np.maximum(ref.sum(axis=1, keepdims=True), 1e-12)
         self._sqrt_ref = np.ascontiguousarray(np.sqrt(ref))
+
+    def _bin_w_power(self, exponent: float) -> F64:
+        """``self._bin_w ** exponent`` (made once per exponent and background weighting)."""
+        assert self._bin_w is not None
+        got = self._bin_w_pow.get(exponent)
+        if got is None:
+            got = self._bin_w ** exponent
+            self._bin_w_pow[exponent] = got
+        return got
 
     def _background_weights(self, bgr: NDArray[np.uint8]) -> None:
         """v_b = min(1, o*/o_b) from the ring around the first box (corrected BWH: only the
@@ -396,6 +406,7 @@ class ViewTracker:
         nz = o[o > 0.01 * o.max()]
         o_star = float(nz.min()) if len(nz) else float(o.max())
         self._bin_w = np.minimum(1.0, o_star / np.maximum(o, 1e-12))
+        self._bin_w_pow = {}
         self._set_reference()
 
     def step(self, bgr: NDArray[np.uint8]) -> ViewOutput:
@@ -406,9 +417,10 @@ class ViewTracker:
         if p.use_motion:
             t0 = time.perf_counter()
             # half-resolution green channel: motion needs no colour and no fine detail
-            self.motion.update(np.ascontiguousarray(bgr[::MOTION_STEP, ::MOTION_STEP, 1]))
+            self.motion.update(bgr[:, :, 1], MOTION_STEP)
             timings["motion_ms"] = (time.perf_counter() - t0) * 1000.0
         self._gains = grey_world_gains(bgr) if self.model.grey_world else None
+        self._lut = fc.gain_lut(self._gains)
         self._recent_motion = None
         first = len(self.particles) == 0
         if first and (p.bg_weighting > 0 or p.loss_bg_weighting > 0):
@@ -420,11 +432,15 @@ class ViewTracker:
                                                p.n_particles, self.rng)
             self.particles[0] = self._init_xyh
         elif self.state == TRACKING:
-            idx = systematic_resample(self.weights, p.n_particles, self.rng)
-            self.particles = pf.predict(self.particles[idx], self.sigma_xyh(h_ref), self.rng,
-                                        self.h_limits)
-            # constant-velocity drift on top of eq. (1)'s random walk
-            self.particles[:, :2] += p.velocity_gain * self._vel_xy
+            # systematic resampling, eq. (1)'s random walk (filter.predict) and on top of it
+            # the constant-velocity drift, compiled in one pass with the same draws
+            u = self.rng.random()
+            noise = self.rng.standard_normal((p.n_particles, 3))
+            self.particles = sk.resample_predict(
+                self.weights, u, p.n_particles, self.particles, noise,
+                np.asarray(self.sigma_xyh(h_ref), dtype=np.float64), self.h_limits[0],
+                self.h_limits[1], p.velocity_gain * float(self._vel_xy[0]),
+                p.velocity_gain * float(self._vel_xy[1]))
             n_traj = round(p.trajectory_share * p.n_particles)
             pred = self.trajectory.predicted() if self.trajectory.coasting else None
             if pred is not None and n_traj > 0:
@@ -462,14 +478,24 @@ class ViewTracker:
         # while searching the weights are many-peaked: test (and re-acquire at) the best one
         probe = mean if self.state == TRACKING else self.particles[int(np.argmax(w))]
         # P(z_col | s_t) at the estimate (inside the particles' region: same integral)
-        b2_mean = (self._colour(ctx, probe[None, :]) if ctx is not None
-                   else self._evaluate(bgr, probe[None, :], motion=False)[0])
-        p_col = float(colour_likelihood(b2_mean[0], p.lambda_col))
+        fixed = None
+        if ctx is not None:
+            # one call: sum_p B_p^2 (no ring term) and the loss test's B_p^2 at the probe
+            ox, oy, rw, rh = ctx.roi_xywh
+            b2_probe, fixed = sk.probe_residuals(
+                ctx.integral, float(ctx.cell), float(ox), float(oy), float(rw), float(rh),
+                int(ctx.image_wh[0]), int(ctx.image_wh[1]),
+                np.ascontiguousarray(probe[None, :], dtype=np.float64), self._rel,
+                float(self.model.aspect), ctx.compact(self._sqrt_ref),
+                ctx.compact(self._sqrt_ref0))
+        else:
+            b2_probe = float(self._evaluate(bgr, probe[None, :], motion=False)[0][0])
+        p_col = float(colour_likelihood(b2_probe, p.lambda_col))
         if first or self._n_frames % BG_EVERY == 0:
             # the background's level around the tested state, then z there
             self._background_levels(bgr, self.last_good_xyh if self.state != TRACKING
                                     else probe)
-        z = self._loss_z(ctx, probe)
+        z = self._loss_z(ctx, probe, fixed)
         self._n_frames += 1
         if first:
             self.p_ref = max(float(np.max(colour_likelihood(b2, p.lambda_col))), p_col)
@@ -578,12 +604,16 @@ class ViewTracker:
 
     def _fit_width(self, bgr: NDArray[np.uint8], mean: F64) -> None:
         """Smoothed output-box width and centre offset from ``extent.measure_extent``."""
-        ref = np.square(self._sqrt_ref)
-        rel = self._rel
-        area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
-        fg = (area / max(float(area.sum()), 1e-12)) @ ref
-        got = measure_extent(bgr, self._gains, mean, self.model.aspect, fg, self.model.n_bins,
-                             w_max_frac=self.params.fit_width_max_frac)
+        if self._fg_of is not self._sqrt_ref or self._fg is None:
+            # the reference's colours pooled by patch area (made again when it changed)
+            ref = np.square(self._sqrt_ref)
+            rel = self._rel
+            area = (rel[:, 2] - rel[:, 0]) * (rel[:, 3] - rel[:, 1])
+            self._fg = (area / max(float(area.sum()), 1e-12)) @ ref
+            self._fg_of = self._sqrt_ref
+        got = measure_extent(bgr, self._gains, mean, self.model.aspect, self._fg,
+                             self.model.n_bins, w_max_frac=self.params.fit_width_max_frac,
+                             lut=self._lut)
         if got is None:
             return
         dx, w = got[0] - float(mean[0]), got[1]

@@ -112,8 +112,10 @@ def test_queries_equal_likelihood_queries() -> None:
 
 def _reference_extent(bgr: np.ndarray, gains: np.ndarray | None, xyh: np.ndarray,
                       aspect: float, fg_hist: np.ndarray, n_bins: int,
-                      w_max_frac: float = 2.2) -> tuple[float, float] | None:
-    # engine.presenter.extent.measure_extent as it was in numpy (defaults inlined)
+                      w_max_frac: float = 2.2,
+                      lut: np.ndarray | None = None) -> tuple[float, float] | None:
+    # engine.presenter.extent.measure_extent as it was in numpy (defaults inlined; the
+    # gains applied by cv2.transform, so no table)
     search_frac, top_skip_frac, bg_from_frac, col_frac, max_gap_px, w_min_frac = (
         1.6, 0.25, 1.2, 0.15, 8.0, 0.7)
     step = ex.STEP
@@ -177,7 +179,7 @@ def _reference_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     """Swap the tracker's colour kernels for the three-step pipeline's functions."""
 
     def roi_integral(bgr: Any, roi: Any, step: int, cell: int, n: int, gains: Any, s_min: int,
-                     v_min: int, pixel_weight: float, soft: bool) -> Any:
+                     v_min: int, pixel_weight: float, soft: bool, lut: Any = None) -> Any:
         ih = lk.binned_integral(_reference_bins(bgr, roi, step, gains), n, cell, s_min, v_min,
                                 pixel_weight, soft)
         return ih, np.arange(ih.shape[2])  # every bin stored: the integral as it was
