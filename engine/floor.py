@@ -52,6 +52,9 @@ from engine.frames import FramePayload, readonly
 F64 = NDArray[np.float64]
 #: half the front-to-back depth of a standing adult (chest about 0.2 m deep)
 BODY_HALF_DEPTH_M = 0.1
+#: fixed-point steps of :meth:`FloorCalibration.standing_box_px` (each at least halves the
+#: error; from the current estimate a few px off, 8 leave well under 0.1 px)
+STANDING_ITERATIONS = 8
 FLOOR_FORMAT = "studiotrack.floor_homography"
 #: 1: homography only; 2: adds the lens camera model (written only when a lens is used, so
 #: an older StudioTrack refuses a zoom-lens calibration instead of ignoring its lens)
@@ -148,6 +151,85 @@ class FloorCalibration:
             fx, fy = self.floor_point(u, y + h)
             return (fx, fy, None)
         return _segment_on_floor(P, (u, y + h), (u, y))
+
+    def standing_box_px(self, u: F64, v: F64, height_m: float, encoders: Any = None,
+                        h_start_px: F64 | None = None) -> tuple[F64, F64] | None:
+        """(height, lean) in px of a person ``height_m`` tall standing upright whose box
+        centre is at (``u``, ``v``) (arrays): :meth:`locate`'s model, a vertical segment from
+        the floor to ``height_m``, its foot the box's bottom and its top the box's top; lean =
+        the top's u minus the foot's (verticals converge on the nadir's image, so a person
+        off the image's middle column leans). NaN where the foot does not see the floor; None
+        without a recovered camera (a bare homography knows no heights).
+
+        Solved per point by the fixed point (h, lean) <- (v_foot - v_head, u_head - u_foot):
+        the foot at (u - lean/2, v + h/2) on the floor, the head ``height_m`` above it
+        projected back. Moving the foot down by dh/2 moves the head down by k dh/2
+        (0 < k <= 1, the head being farther away), so each step shrinks h's error by
+        (1 - k)/2 < 1/2; ``h_start_px`` (e.g. the current estimate) starts it near the
+        answer.
+        """
+        uu = np.asarray(u, dtype=np.float64).reshape(-1)
+        vv = np.asarray(v, dtype=np.float64).reshape(-1)
+        ray_to_floor, project = self._floor_maps(encoders)
+        if ray_to_floor is None or project is None:
+            return None
+        if h_start_px is None:
+            h = np.full(len(uu), 0.25 * float((self.image_wh or (0, 480))[1]))
+        else:
+            h = np.asarray(h_start_px, dtype=np.float64).reshape(-1).copy()
+        lean = np.zeros(len(uu))
+        top = np.full(len(uu), float(height_m))
+        for _ in range(STANDING_ITERATIONS):
+            foot_u, foot_v = uu - 0.5 * lean, vv + 0.5 * h
+            X, Y = ray_to_floor(foot_u, foot_v)
+            head_u, head_v = project(X, Y, top)
+            h, lean = foot_v - head_v, head_u - foot_u
+        bad = ~(np.isfinite(h) & np.isfinite(lean)) | (h <= 0)
+        h[bad] = np.nan
+        lean[bad] = np.nan
+        return h, lean
+
+    def _floor_maps(self, encoders: Any = None) -> tuple[Any, Any]:
+        """(image (u, v) arrays -> floor (X, Y) arrays, floor (X, Y, Z) arrays -> image (u, v)
+        arrays) of this calibration's camera (lens model at ``encoders``); (None, None)
+        without one."""
+        model = self.camera_at(encoders)
+        if model is not None:
+            from engine.camera import pixels_to_normalized, project
+
+            cam, T = model
+            R, t = T[:3, :3], T[:3, 3]
+            C = -R.T @ t
+
+            def to_floor_lens(u: F64, v: F64) -> tuple[F64, F64]:
+                xy = pixels_to_normalized(cam, np.stack([u, v], axis=1))
+                ray = np.c_[xy, np.ones(len(u))] @ R  # R.T @ (x, y, 1) per row
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    s = np.where(ray[:, 2] < -1e-12, -C[2] / ray[:, 2], np.nan)
+                return C[0] + s * ray[:, 0], C[1] + s * ray[:, 1]
+
+            def to_image_lens(X: F64, Y: F64, Z: F64) -> tuple[F64, F64]:
+                uv = project(cam, np.stack([X, Y, Z], axis=1) @ R.T + t)
+                return uv[:, 0], uv[:, 1]
+
+            return to_floor_lens, to_image_lens
+        P = self.camera()
+        if P is None:
+            return None, None
+        Hm = self.H_floor_img
+
+        def to_floor(u: F64, v: F64) -> tuple[F64, F64]:
+            p = Hm @ np.stack([u, v, np.ones(len(u))])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return p[0] / p[2], p[1] / p[2]
+
+        def to_image(X: F64, Y: F64, Z: F64) -> tuple[F64, F64]:
+            q = P @ np.stack([X, Y, Z, np.ones(len(X))])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = np.where(q[2] > 1e-12, q[2], np.nan)
+                return q[0] / z, q[1] / z
+
+        return to_floor, to_image
 
     def floor_point(self, u: float, v: float, encoders: Any = None) -> tuple[float, float]:
         """The floor point (m) seen at image point (u, v) (lens model: at ``encoders``)."""

@@ -308,7 +308,8 @@ def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, An
         if det is not None and in_view:
             false_lost += int(r.state == TrackState.LOST)
             lost_front += int(getattr(det, "frontal_state", "TRACKING") != "TRACKING")
-            lost_over += int(getattr(det, "overhead_state", "TRACKING") != "TRACKING")
+            # None: the second view's filter has not started (its box still on the border)
+            lost_over += int(getattr(det, "overhead_state", None) not in (None, "TRACKING"))
         if over is None or over.floor_xy_m_true is None or det is None \
                 or getattr(det, "d_m", None) is None or over.floor_calibration is None:
             continue

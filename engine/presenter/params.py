@@ -23,7 +23,8 @@ PAPER_PRESET = Preset(
     velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, mode_seek=False, model_update_rate=0.0,
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100,
-    trajectory_share=0.0, lambda_col=0.1, reacquire_frames=1, loss_bg_weighting=1.0)
+    trajectory_share=0.0, lambda_col=0.1, reacquire_frames=1, loss_bg_weighting=1.0,
+    floor_scale=False, floor_lean=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -170,6 +171,18 @@ class PresenterParams(Params):
                            help="integral-histogram grid cells per side (cost bound)")
     auto_patches: int = param(3, lo=2, hi=4, step=1,
                               help="patches split from a first-frame box (2, 3 or 4)")
+    floor_scale: bool = param(True,
+                              help="second view with a floor calibration: each hypothesis's "
+                              "box height is that of a person as tall as the first box "
+                              "standing where the box is (engine.presenter.twoview), instead "
+                              "of eq. (1)'s random walk in h (which drifts and moves the foot "
+                              "point: d off by the drift)")
+    floor_lean: bool = param(True,
+                             help="second view with a floor calibration: the patches move "
+                             "across the box with the lean of a standing person there "
+                             "(verticals converge on the nadir: a person at the image's left "
+                             "edge leans left, at its right edge right) instead of keeping "
+                             "the first frame's geometry (engine.presenter.twoview)")
     use_part_boxes: bool = param(True,
                                  help="first-frame patches from the source's per-part boxes "
                                  "(built-in studio) instead of the automatic split")

@@ -5,9 +5,25 @@ The calibration and the second view's frame payload live in :mod:`engine.floor` 
 attaches them; the studio project stores the calibration); re-exported here. The presenter's
 floor point is the bottom centre of the second view's box (the feet are on the floor, where
 the homography is exact); d is its distance to the robot. The output is (x1, y1, d).
+
+Scale from the floor (``PresenterParams.floor_scale``, beyond the paper): the second view is
+calibrated, and a person standing on the floor at a given place has a given image height
+there, so its filter does not random-walk h (eq. 1) but takes each hypothesis's h from its
+position (:class:`StandingPerson`): the box of a person as tall as the first frame's box says
+(:func:`standing_height_m`), standing where the hypothesis's box centre is
+(:meth:`FloorCalibration.standing_box_px`). A random walk in h drifts (a box a little
+taller than the person matches the colours as well) and moves the foot point with it: with
+the overhead view's about 1.4 cm of floor per pixel, a 10 px drift is 7 cm of d. With a zoom
+lens the height follows the encoders each frame.
 """
 
 from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from engine.floor import (
     FloorCalibration,
@@ -17,8 +33,14 @@ from engine.floor import (
     save_floor_calibration,
 )
 
-__all__ = ["FloorCalibration", "OverheadView", "calibrate_floor", "foot_point",
-           "fuse", "load_floor_calibration", "save_floor_calibration"]
+__all__ = ["FloorCalibration", "OverheadView", "StandingPerson", "calibrate_floor",
+           "foot_point", "fuse", "load_floor_calibration", "save_floor_calibration",
+           "standing_height_m"]
+
+F64 = NDArray[np.float64]
+#: secant steps of :func:`standing_height_m` (the box height is smooth and monotonic in the
+#: person's height; 8 leave far under 0.01 px)
+HEIGHT_STEPS = 8
 
 
 def foot_point(xyh: tuple[float, float, float], aspect: float) -> tuple[float, float]:
@@ -34,3 +56,101 @@ def fuse(x1: float, y1: float, overhead_xy2: tuple[float, float] | None,
     if overhead_xy2 is None or calib is None:
         return (x1, y1, None)
     return (x1, y1, calib.distance_m(*overhead_xy2))
+
+
+def standing_height_m(calib: FloorCalibration, box_xywh: tuple[float, float, float, float],
+                      encoders: Any = None) -> float | None:
+    """The height (m) of the upright person whose box this is, in the model
+    :meth:`FloorCalibration.standing_box_px` inverts: that method at the box's centre with
+    this height gives the box's height (secant steps). None where the calibration has no
+    camera or the box does not stand on the floor it sees."""
+    x, y, w, h = (float(v) for v in box_xywh)
+    u, v = np.array([x + 0.5 * w]), np.array([y + 0.5 * h])
+
+    def height_px(height_m: float) -> float:
+        got = calib.standing_box_px(u, v, height_m, encoders, np.array([h]))
+        return float("nan") if got is None else float(got[0][0])
+
+    a, b = 1.0, 2.0
+    fa, fb = height_px(a) - h, height_px(b) - h
+    for _ in range(HEIGHT_STEPS):
+        if not (math.isfinite(fa) and math.isfinite(fb)) or fb == fa:
+            break
+        a, fa, b = b, fb, b - fb * (b - a) / (fb - fa)
+        fb = height_px(b) - h
+    if not (math.isfinite(b) and math.isfinite(fb) and b > 0 and abs(fb) < 0.5):
+        return None
+    return float(b)
+
+
+class StandingPerson:
+    """The second view's person model from its floor calibration: someone ``height_m`` tall
+    (:func:`standing_height_m` of the first box) standing upright on the floor. ``encoders``
+    are the view's lens encoders at the current frame (a zoom lens; the tracker sets them).
+
+    - :meth:`heights`: each hypothesis's box height at its box centre (the scale model that
+      replaces eq. (1)'s random walk in h, ``PresenterParams.floor_scale``);
+    - :meth:`patch_boxes`: the patches moved across the box with the person's lean at the
+      estimate (``floor_lean``): a patch at height fraction f of the box sits ``lean x
+      (1/2 - f)`` px right of where it would sit upright, plus its own offset in the first
+      box once the first box's lean is taken out. A model with the first frame's geometry
+      puts a person seen leaning left at the image's left edge (head left, feet right) on
+      one leaning right at its right edge: the torso patch lands beside the person.
+    """
+
+    def __init__(self, calib: FloorCalibration, height_m: float,
+                 first_box_xywh: tuple[float, float, float, float], rel_boxes: F64,
+                 encoders: Any = None) -> None:
+        self.calib = calib
+        self.height_m = float(height_m)
+        self.encoders = encoders
+        rel = np.asarray(rel_boxes, dtype=np.float64)
+        self.rel_first = rel.copy()
+        x, y, w, h = (float(v) for v in first_box_xywh)
+        lean0 = self._lean(x + 0.5 * w, y + 0.5 * h, h)
+        self._f = 0.5 * (rel[:, 1] + rel[:, 3])  # height fraction of each patch's centre
+        cx = 0.5 * (rel[:, 0] + rel[:, 2])
+        # each patch's own offset from the box centre with the first box's lean taken out
+        # (box-width fractions)
+        self._own = cx - 0.5 - (0.0 if lean0 is None else lean0 / w) * (0.5 - self._f)
+
+    @classmethod
+    def from_first_box(cls, calib: FloorCalibration | None,
+                       box_xywh: tuple[float, float, float, float] | None, rel_boxes: F64,
+                       encoders: Any = None) -> StandingPerson | None:
+        """The model for the person in the second view's first box (None without a
+        calibration that knows heights, or a box that is not a standing person on its
+        floor)."""
+        if calib is None or box_xywh is None:
+            return None
+        height = standing_height_m(calib, box_xywh, encoders)
+        if height is None:
+            return None
+        return cls(calib, height, box_xywh, rel_boxes, encoders)
+
+    def _lean(self, u: float, v: float, h: float) -> float | None:
+        got = self.calib.standing_box_px(np.array([u]), np.array([v]), self.height_m,
+                                         self.encoders, np.array([h]))
+        if got is None or not math.isfinite(float(got[1][0])):
+            return None
+        return float(got[1][0])
+
+    def heights(self, particles_xyh: F64) -> F64 | None:
+        """Box heights (px) of the (x, y, h) rows (NaN: keep the row's)."""
+        got = self.calib.standing_box_px(particles_xyh[:, 0], particles_xyh[:, 1],
+                                         self.height_m, self.encoders, particles_xyh[:, 2])
+        return None if got is None else got[0]
+
+    def patch_boxes(self, xyh: F64, aspect: float) -> F64:
+        """Relative patch boxes (x0, y0, x1, y1 of the main box) at state ``xyh``: the first
+        frame's sizes and heights, moved across by the lean there (kept inside the box)."""
+        x, y, h = (float(v) for v in xyh)
+        lean = self._lean(x, y, h)
+        rel = self.rel_first.copy()
+        if lean is None:
+            return rel
+        half = 0.5 * (rel[:, 2] - rel[:, 0])
+        cx = 0.5 + self._own + lean / max(h * aspect, 1e-9) * (0.5 - self._f)
+        cx = np.clip(cx, half, 1.0 - half)
+        rel[:, 0], rel[:, 2] = cx - half, cx + half
+        return rel

@@ -45,8 +45,10 @@ Beyond the paper (each switchable, measured in ``studiotrack bench presenter``):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -179,6 +181,10 @@ class ViewTracker:
         self._recent_motion: Any = None  # this frame's integral of recent motion (lazy)
         self._motion_bg: float | None = None  # the background boxes' moving fraction
         self.motion_margin = float("nan")  # moving fraction at the estimate minus that
+        #: scale model replacing eq. (1)'s random walk in h: the heights of the predicted
+        #: (x, y, h) rows (NaN = keep), e.g. a calibrated view's standing person
+        #: (engine.presenter.twoview.StandingPerson.heights); None = the random walk
+        self.scale_model: Callable[[F64], F64 | None] | None = None
 
     # ------------------------------------------------------------------ configuration
 
@@ -195,6 +201,14 @@ class ViewTracker:
         self._set_reference()  # model_anchor / bg_weighting changes
         if params.seed != old.seed:
             self.rng = np.random.default_rng(params.seed)
+
+    def set_patch_boxes(self, rel_boxes: F64) -> None:
+        """Move the patches inside the main region (x0, y0, x1, y1 fractions; same sizes)
+        from the next step on, e.g. with a calibrated view's lean of a standing person
+        (engine.presenter.twoview.StandingPerson)."""
+        rel = np.ascontiguousarray(rel_boxes, dtype=np.float64)
+        self.model = dataclasses.replace(self.model, rel_boxes=rel)
+        self._rel = rel
 
     def sigma_xyh(self, h: float) -> tuple[float, float, float]:
         p = self.params
@@ -461,6 +475,11 @@ class ViewTracker:
             fresh = pf.diffuse_cloud((W, H), ((1.0 - k) * h_ref, (1.0 + k) * h_ref),
                                      n - n_keep, self.rng)
             self.particles = np.vstack([kept, fresh])
+        if self.scale_model is not None:
+            h_model = self.scale_model(self.particles)
+            if h_model is not None:
+                ok = np.isfinite(h_model)
+                self.particles[ok, 2] = h_model[ok]
         timings["predict_ms"] = (time.perf_counter() - t0) * 1000.0
 
         t0 = time.perf_counter()

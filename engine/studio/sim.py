@@ -236,9 +236,9 @@ class Studio:
             vis = sel[sel[:, 4] > 0]
             box = _xywh(vis[:, 0].min(), vis[:, 1].min(), vis[:, 2].max(), vis[:, 3].max())
         parts: tuple[tuple[str, tuple[float, float, float, float]], ...] = ()
-        if box is not None and index == 0:
-            # the operator's patches of the second view's model (first frame only: the
-            # tracker initialises from it)
+        if box is not None:
+            # the operator's patches of the second view's model (every frame: the tracker
+            # initialises on the first whose box is wholly inside the image)
             cores = core_boxes_from_labels(
                 out.labels, {"head": LABEL_HEAD, "torso": LABEL_TORSO, "legs": LABEL_LEGS})
             parts = tuple((k, (float(b[0]), float(b[1]), float(b[2]), float(b[3])))

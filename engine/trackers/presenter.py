@@ -97,6 +97,10 @@ class PresenterTracker:
         self._t_prev: float | None = None
         self._floor: Any = None  # FloorCalibration loaded from floor_path
         self._floor_path_loaded: str | None = None
+        #: the second view's first box and encoders, and its standing-person model
+        self._over_first: Any = None
+        self._over_pending: Any = None  # the last second-view frame with a box on the border
+        self._over_person: Any = None
 
     @property
     def params(self) -> PresenterParams:
@@ -119,6 +123,9 @@ class PresenterTracker:
     def reset(self) -> None:
         self._view = None
         self._overhead = None
+        self._over_first = None
+        self._over_person = None
+        self._over_pending = None
         self._t_prev = None
         if self._control is not None:
             self._control.reset()
@@ -173,17 +180,56 @@ class PresenterTracker:
         self.model = model
         fps = 30.0  # until the timestamps give the rate (track())
         self._view = ViewTracker(model, p, fps)
-        over = frame.payload(OverheadView)
-        if over is not None and over.box_xywh is not None:
-            oparts = dict(over.part_boxes)
-            if p.use_part_boxes and len(oparts) >= 2:
-                omodel = model_from_parts(over.color_bgr, over.box_xywh, oparts, p.n_bins,
-                                          grey_world=p.grey_world)
-            else:
-                omodel = model_from_box(over.color_bgr, over.box_xywh, p.auto_patches,
-                                        p.n_bins, grey_world=p.grey_world)
-            self._overhead = ViewTracker(omodel, p, fps)
         return True
+
+    def _init_overhead(self, over: OverheadView) -> None:
+        """The second view's filter, from its first box wholly inside the image: a box on
+        the image's border is part of a person, its centre off the body's (a model of it
+        tracks a point beside the person: the floor position off by the cut). While the
+        source gives boxes on the border the filter waits; when they stop, it starts from
+        the last one."""
+        from engine.presenter.model import model_from_box, model_from_parts
+        from engine.presenter.view import ViewTracker
+
+        p = self._params
+        use = over if over.box_xywh is not None else self._over_pending
+        if use is None or use.box_xywh is None:
+            return
+        if over.box_xywh is not None and _on_border(over.box_xywh, over.color_bgr.shape):
+            self._over_pending = over
+            return
+        self._over_pending = None
+        oparts = dict(use.part_boxes)
+        if p.use_part_boxes and len(oparts) >= 2:
+            omodel = model_from_parts(use.color_bgr, use.box_xywh, oparts, p.n_bins,
+                                      grey_world=p.grey_world)
+        else:
+            omodel = model_from_box(use.color_bgr, use.box_xywh, p.auto_patches, p.n_bins,
+                                    grey_world=p.grey_world)
+        self._overhead = ViewTracker(omodel, p, self._view.frame_rate_hz)
+        self._over_first = (use.box_xywh, use.lens_encoders, omodel.rel_boxes)
+        self._over_person = None
+
+    def _overhead_person(self, calib: Any, over: OverheadView) -> None:
+        """The second view's standing-person model from the floor calibration (made from
+        the first box once per calibration, following the view's encoders): its scale
+        (``floor_scale``) and its patches' lean (``floor_lean``)."""
+        from engine.presenter.twoview import StandingPerson
+
+        p, view = self._params, self._overhead
+        if (p.floor_scale or p.floor_lean) and calib is not None \
+                and self._over_first is not None and (
+                    self._over_person is None or self._over_person.calib is not calib):
+            box, encoders, rel = self._over_first
+            self._over_person = StandingPerson.from_first_box(calib, box, rel, encoders)
+        person = self._over_person if (p.floor_scale or p.floor_lean) else None
+        if person is not None:
+            person.encoders = over.lens_encoders
+        view.scale_model = person.heights if person is not None and p.floor_scale else None
+        if person is not None and p.floor_lean:
+            view.set_patch_boxes(person.patch_boxes(view.last_good_xyh, view.model.aspect))
+        elif person is not None:
+            view.set_patch_boxes(person.rel_first)
 
     def _floor_calibration(self, over: OverheadView) -> Any:
         """``floor_path``'s calibration (a floor.json or a studio project), else the
@@ -230,12 +276,15 @@ class PresenterTracker:
         height = None
         obox = None
         over = frame.payload(OverheadView)
+        if self._overhead is None and over is not None:
+            self._init_overhead(over)
         if self._overhead is not None and over is not None:
+            calib = self._floor_calibration(over)
+            self._overhead_person(calib, over)
             over_out = self._overhead.step(_as_bgr_image(over.color_bgr))
             ox, oy, oh = over_out.raw_xyh
             ow = oh * self._overhead.model.aspect
             obox = (ox - ow / 2.0, oy - oh / 2.0, ow, oh)
-            calib = self._floor_calibration(over)
             if calib is not None and over_out.state == "TRACKING":
                 # a lens-model calibration: K and distortion at the view's encoders now
                 fx_m, fy_m, height = calib.locate(obox, over.lens_encoders)
@@ -304,6 +353,14 @@ def _lost_message(p: PresenterParams, out: Any, over_out: Any) -> str:
                 f"{p.loss_contrast:.2f}")
     return (f"{view}lost for {o.lost_frames} frames: colour likelihood {o.p_col:.3g} < Pmin "
             f"{o.p_min:.3g}")
+
+
+def _on_border(box_xywh: tuple[float, float, float, float], shape: tuple[int, ...],
+               margin_px: float = 1.0) -> bool:
+    """The box touches the image's border (within ``margin_px``)."""
+    x, y, w, h = box_xywh
+    H, W = shape[:2]
+    return x < margin_px or y < margin_px or x + w > W - margin_px or y + h > H - margin_px
 
 
 def _as_bgr_image(img: np.ndarray) -> np.ndarray:

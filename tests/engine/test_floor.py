@@ -65,6 +65,35 @@ def test_a_standing_person_is_located_from_the_box() -> None:
     assert calib.distance_m(*foot) == pytest.approx(np.hypot(xs, ys + 2.6), abs=1e-6)
 
 
+def test_a_standing_persons_box_height_and_lean_follow_from_the_calibration() -> None:
+    """standing_box_px inverts the located segment: the box of a vertical segment (foot at
+    the bottom, top at the top) has the height and lean it predicts at the box's centre, and
+    standing_height_m gives the segment's height back; a bare homography knows no heights."""
+    from engine.presenter.twoview import standing_height_m
+
+    K, T = _camera()
+    calib = calibrate_floor(_uv(K, T, np.array([[x, y, 0.0] for x, y in MARKS])), MARKS,
+                            (0.0, -2.6), (640, 480))
+    height = 1.8
+    for X, Y in ((-1.5, 2.5), (0.4, 2.8), (1.6, 3.6)):
+        foot, head = _uv(K, T, np.array([[X, Y, 0.0], [X, Y, height]]))
+        u, v = 0.5 * (foot + head)
+        got = calib.standing_box_px(np.array([u]), np.array([v]), height)
+        assert got is not None
+        h, lean = got
+        assert float(h[0]) == pytest.approx(foot[1] - head[1], abs=0.05)
+        assert float(lean[0]) == pytest.approx(head[0] - foot[0], abs=0.05)
+        box = (u - 20.0, head[1], 40.0, foot[1] - head[1])
+        assert standing_height_m(calib, box) == pytest.approx(height, abs=1e-3)
+    # off the image's middle column a vertical leans (towards the nadir's image below)
+    leans = calib.standing_box_px(np.array([100.0, 540.0]), np.array([250.0, 250.0]), height)
+    assert leans is not None
+    assert leans[1][0] < -5.0 < 5.0 < leans[1][1]
+    bare = calibrate_floor(calib.image_points_px, MARKS)  # no image size: no camera
+    assert bare.standing_box_px(np.array([300.0]), np.array([250.0]), height) is None
+    assert standing_height_m(bare, (280.0, 200.0, 40.0, 100.0)) is None
+
+
 def test_floor_calibration_round_trips_and_lives_in_the_project(tmp_path: Path) -> None:
     K, T = _camera()
     calib = calibrate_floor(_uv(K, T, np.array([[x, y, 0.0] for x, y in MARKS])), MARKS,

@@ -112,7 +112,9 @@ def test_second_view_model_comes_from_its_own_patches_and_follows_the_walk() -> 
     first = frames[0].payload(OverheadView)
     assert first is not None
     assert {name for name, _ in first.part_boxes} == {"head", "torso", "legs"}
-    assert frames[1].payload(OverheadView).part_boxes == ()  # only the first frame's
+    # every frame's (the filter starts on the first box wholly inside the image)
+    assert {name for name, _ in frames[1].payload(OverheadView).part_boxes} == {
+        "head", "torso", "legs"}
     tracker = create_tracker("presenter")
     errs = []
     for f in frames:
@@ -179,3 +181,42 @@ def test_closed_loop_keeps_a_walking_presenter_framed() -> None:
                 e.append(np.hypot(t.presenter_tv_px[0] - W / 2, t.presenter_tv_px[1] - H / 2))
         errs[name] = float(np.mean(e[-20:]))
     assert errs["closed"] < 0.5 * errs["still"]
+
+
+def test_second_view_starts_on_a_whole_person_and_takes_its_scale_from_the_floor() -> None:
+    """The rail walk starts with the presenter cut by the second view's left edge: its filter
+    waits for a box wholly inside the image (a model of half a person tracks a point beside
+    them); then each box's height is the standing person's at its centre (floor_scale)
+    instead of a random walk, and the patches lean with the position (floor_lean)."""
+    from engine.presenter.twoview import standing_height_m
+
+    src = open_source("synthetic:frames=14,width=320,height=240,presenter=1,path=rail,"
+                      "views=2,seed=5,presenter_look=1")
+    frames = list(src.frames())
+    first = frames[0].payload(OverheadView)
+    assert first is not None
+    assert first.box_xywh is not None
+    assert first.box_xywh[0] < 1.0  # on the border
+    tracker = create_tracker("presenter")
+    states = []
+    for f in frames:
+        d = tracker.track(f).details
+        states.append(d.overhead_state)
+        over = f.payload(OverheadView)
+        if d.overhead_box_xywh is not None:
+            x, y, w, h = d.overhead_box_xywh
+            calib = over.floor_calibration
+            person = tracker._over_person
+            assert person is not None
+            want = calib.standing_box_px(np.array([x + w / 2]), np.array([y + h / 2]),
+                                         person.height_m)[0][0]
+            assert h == pytest.approx(want, rel=0.01)  # the mean of standing heights
+    started = states.index("TRACKING")
+    assert started > 0
+    assert all(s is None for s in states[:started])
+    start_box = frames[started].payload(OverheadView).box_xywh
+    assert start_box[0] >= 1.0
+    assert tracker._over_person.height_m == pytest.approx(
+        standing_height_m(frames[started].payload(OverheadView).floor_calibration, start_box))
+    rel = tracker._overhead.model.rel_boxes
+    assert not np.allclose(rel, tracker._over_person.rel_first)  # moved with the lean
