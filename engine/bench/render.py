@@ -3,7 +3,11 @@
 Side by side in one run, on the same camera poses (rail path): rendering the empty set
 (``empty``), rendering the set with the walking presenter and the ball (``presenter``, the
 headline numbers), whole source frames (render + truth extraction + Frame record,
-``frame``) and the same with Kinect depth noise and dropouts (``frame_noisy``). Reports
+``frame``) and the same with Kinect depth noise and dropouts (``frame_noisy``); as a peer, the
+presenter case with the ray caster sampling the textures itself (``raycast``, the renderer
+before ``cv2.remap`` took the texture fetch; ``ratio_raycast_over_presenter``) and how far its
+images are from the default's on every timed pose (``raycast_agreement``: colour differences
+in grey levels, depth and label differences). Reports
 median/p95 wall ms per frame, frames/s (1000 / median) and the process CPU time per frame
 (robust to other processes competing for the cores). Goal: >= 60 frames/s at 640x480 on a
 2-core CPU.
@@ -95,6 +99,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from engine.studio.render import Renderer
 
     renderer_all = Renderer(studio.scene, studio.intrinsics, threads=0)
+    renderer_rc = Renderer(studio.scene, studio.intrinsics, threads=renderer.threads,
+                           method="raycast")
     poses = [studio.T_world_cam(i) for i in range(n)]
     dyn = []
     cfg = studio.config
@@ -109,13 +115,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             parts.append(cfg.ball.prims(cfg.ball.state(i / cfg.fps)[0], studio.scene))
         dyn.append(concat_prims(*parts))
 
-    cases: dict[str, list[float]] = {"empty": [], "presenter": [], "frame": [], "frame_noisy": []}
+    cases: dict[str, list[float]] = {"empty": [], "presenter": [], "frame": [], "frame_noisy": [],
+                                     "raycast": []}
     cpu: dict[str, list[float]] = {name: [] for name in cases}
+    agree = _Agreement()
     jobs: dict[str, Callable[[int], object]] = {
         "empty": lambda i: renderer.render(poses[i]),
-        "presenter": lambda i: renderer.render(poses[i], dyn[i]),
+        "presenter": lambda i: agree.keep(renderer.render(poses[i], dyn[i])),
         "frame": lambda i: studio.frame(i),
         "frame_noisy": lambda i: noisy.frame(i),
+        "raycast": lambda i: agree.compare(renderer_rc.render(poses[i], dyn[i])),
     }
     if all_threads != threads:
         cases[f"presenter_{all_threads}_threads"] = []
@@ -151,6 +160,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         load1 = os.getloadavg()[0]
     except OSError:
         load1 = float("nan")
+    res["ratio_raycast_over_presenter"] = (
+        res["raycast"]["ms_median"] / res["presenter"]["ms_median"])
+    res["ratio_raycast_over_presenter_cpu"] = (
+        res["raycast"]["cpu_ms_median"] / res["presenter"]["cpu_ms_median"])
+    res["raycast_agreement"] = agree.summary()
+    log(f"  raycast / presenter: {res['ratio_raycast_over_presenter']:.2f} (wall), "
+        f"{res['ratio_raycast_over_presenter_cpu']:.2f} (CPU); images: "
+        + ", ".join(f"{k} {v:g}" for k, v in res["raycast_agreement"].items()))
     if "open3d_depth_only" in res:
         res["ratio_open3d_over_presenter"] = (
             res["open3d_depth_only"]["ms_median"] / res["presenter"]["ms_median"]
@@ -172,6 +189,48 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "goal_fps": 60.0,
     }
     return out
+
+
+class _Agreement:
+    """Pixel-wise differences between the default renderer's images and the ray caster's
+    (``raycast``) of the same pose, over all timed poses."""
+
+    def __init__(self) -> None:
+        self._last: Any = None
+        self.colour_max = 0
+        self.colour_sum = 0.0
+        self.over_2 = 0
+        self.pixels = 0
+        self.depth_max_m = 0.0
+        self.labels_differ = 0
+
+    def keep(self, out: Any) -> Any:
+        self._last = (out.color_bgr.copy(), out.depth_m.copy(), out.labels.copy())
+        return out
+
+    def compare(self, out: Any) -> Any:
+        if self._last is None:
+            return out
+        bgr, depth, labels = self._last
+        d = np.abs(out.color_bgr.astype(np.int16) - bgr.astype(np.int16))
+        self.colour_max = max(self.colour_max, int(d.max()))
+        self.colour_sum += float(d.mean()) * labels.size
+        self.over_2 += int(np.count_nonzero(d.max(axis=2) > 2))
+        self.pixels += labels.size
+        self.depth_max_m = max(self.depth_max_m, float(np.abs(out.depth_m - depth).max()))
+        self.labels_differ += int(np.count_nonzero(out.labels != labels))
+        self._last = None
+        return out
+
+    def summary(self) -> dict[str, float]:
+        n = max(self.pixels, 1)
+        return {
+            "colour_abs_max": float(self.colour_max),
+            "colour_abs_mean": self.colour_sum / n,
+            "colour_frac_over_2": self.over_2 / n,
+            "depth_abs_max_m": self.depth_max_m,
+            "labels_frac_differ": self.labels_differ / n,
+        }
 
 
 def write_preview(path: str, width: int = 640, height: int = 480) -> None:

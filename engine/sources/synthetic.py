@@ -49,6 +49,9 @@ occluder (0)           1: a grey panel (0.7 x 1.3 m) moving 1.6 m in front of th
 cover_start            lens covered (dark image, no depth) from this frame ...
 cover_frames (20)      ... for this many frames (loss-and-relock tests)
 threads (1)            renderer threads per frame (0: all cores; 1 is steadier on a busy CPU)
+render (remap)         remap: textures sampled by cv2.remap from the ray caster's maps (fast);
+                       raycast: sampled in the ray caster itself (same depth and labels,
+                       colours within a few grey levels; ``engine.studio.render``)
 ahead (1)              frames rendered ahead on a worker thread while the consumer tracks, as a
                        camera exposes the next frame meanwhile (``engine.sources.ahead``; every
                        frame is rendered, capture time = when it is handed out); 0: rendered
@@ -194,6 +197,7 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "cover_start": _int(0),
     "cover_frames": _int(0),
     "threads": _int(0, 256),
+    "render": _choice("remap", "raycast"),
     "ahead": _int(0, 8),
     "zoom": _zoom,
     "zoom_cycle_s": _float(0.0, open_lo=True),
@@ -328,6 +332,7 @@ def config_from_options(opts: dict[str, str]) -> Any:
         cover_start=o.get("cover_start", -1),
         cover_frames=o.get("cover_frames", 20 if "cover_start" in o else 0),
         threads=o.get("threads", 1),
+        render=o.get("render", "remap"),
         person2=person2,
         lighting=o.get("lighting", "default"),
         views=o.get("views", 1),

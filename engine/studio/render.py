@@ -10,16 +10,18 @@ the image is what a distorting lens would record). The nearest hit among the roo
   Lambertian shading with one directional light at render time;
 - a label map (:data:`engine.studio.scene.LABEL_NAMES`).
 
-Primitives are culled per image row and per pixel by their screen-space rectangles in
-normalised coordinates, computed per frame from their world bounding boxes.
+Primitives are culled per image tile (8 x 16 pixels) and per pixel by their screen-space
+rectangles in normalised coordinates, computed per frame from their world bounding boxes.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import weakref
 from dataclasses import dataclass
 
+import cv2
 import numba
 import numpy as np
 from numba import njit, prange
@@ -34,6 +36,9 @@ I64 = NDArray[np.int64]
 
 _EPS = 1e-6
 _INF = 1e30
+#: culling tiles (pixels): the kernel tests a primitive's screen rectangle once per tile
+_TILE_H = 8
+_TILE_W = 16
 
 # Flat materials: ambient + diffuse * max(0, n . L), L towards a key light front-left above.
 _DYN_LIGHT = np.array([-0.35, -1.0, 0.9]) / np.linalg.norm([-0.35, -1.0, 0.9])
@@ -257,6 +262,41 @@ def _fetch(mat_i: I64, mat_f: F64, atlas: NDArray[np.uint32], m: int, u: float, 
     return True
 
 
+#: sub-pixel steps of OpenCV's fixed-point remap maps (``cv2.INTER_BITS`` = 5)
+_REMAP_BITS = 5
+_REMAP_TAB = 1 << _REMAP_BITS
+
+
+@njit(cache=True, fastmath=True, nogil=True)
+def _atlas_map(mat_i: I64, mat_f: F64, mat_xy: I64, m: int, u: float, v: float,
+               out_xy: NDArray[np.int16], out_frac: NDArray[np.uint16], row: int,
+               col: int) -> None:
+    """Texture coordinates (u, v) of material ``m`` as one fixed-point ``cv2.remap`` entry
+    into the 2D atlas (:func:`_atlas_2d`): the same texel grid and the same wrapping as
+    :func:`_fetch`, coordinates clamped to the texture (the atlas pads each wrapping texture
+    with a copy of its first column)."""
+    tw = mat_i[m, 2]
+    th = mat_i[m, 1]
+    inv_texel = mat_f[m, 0]
+    c = u * inv_texel
+    r = (mat_f[m, 1] - v) * inv_texel
+    if mat_i[m, 3] != 0:
+        if c < 0.0 or c >= tw:
+            c = c - math.floor(c / tw) * tw
+        c = min(max(c, 0.0), float(tw))
+    else:
+        c = min(max(c, 0.0), tw - 1.0)
+    r = min(max(r, 0.0), th - 1.0)
+    # cv2.convertMaps: rounded to 1/32 pixel, integer part and (row, col) fraction index
+    # (the coordinates are >= 0: truncation rounds down)
+    ix = int((mat_xy[m, 0] + c) * _REMAP_TAB + 0.5)
+    iy = int((mat_xy[m, 1] + r) * _REMAP_TAB + 0.5)
+    out_xy[row, col, 0] = np.int16(ix >> _REMAP_BITS)
+    out_xy[row, col, 1] = np.int16(iy >> _REMAP_BITS)
+    out_frac[row, col] = np.uint16(((iy & (_REMAP_TAB - 1)) << _REMAP_BITS)
+                                   | (ix & (_REMAP_TAB - 1)))
+
+
 @njit(cache=True, fastmath=True, nogil=True)
 def _box_uv(lx: float, ly: float, lz: float, g: F64, face: int) -> tuple[float, float]:
     a = face // 2
@@ -267,13 +307,102 @@ def _box_uv(lx: float, ly: float, lz: float, g: F64, face: int) -> tuple[float, 
     return lx + g[3], ly + g[4]
 
 
+@njit(inline="always", fastmath=True, nogil=True)
+def _pick(face: int, p0: float, p1: float, p2: float, p3: float, p4: float,
+          p5: float) -> float:
+    """p[face] as selects (an array lookup here would stop the loop vectorising)."""
+    return p0 if face == 0 else (p1 if face == 1 else (p2 if face == 2 else (
+        p3 if face == 3 else (p4 if face == 4 else p5))))
+
+
+@njit(parallel=True, cache=True, fastmath=True, nogil=True)
+def _room_map_kernel(
+    xn: F64,
+    yn: F64,
+    inv_norm: F64,
+    R: F64,
+    o: F64,
+    room: F64,
+    ft: F64,
+    out_depth: NDArray[np.float32],
+    out_label: NDArray[np.uint8],
+    out_map_xy: NDArray[np.int32],
+    out_map_frac: NDArray[np.uint16],
+) -> None:
+    """The room alone (every pixel): depth, label 0 and the remap entry of its exit face.
+
+    The same rays, exit distances and texel grid as :func:`_render_kernel` (the same depth and
+    maps, bit for bit), written without branches or table lookups so that the compiler
+    vectorises the loop. ``ft`` per room face: (1/texel, v_top, atlas x, atlas y, last
+    column, last row); ``out_map_xy``: the (x, y) int16 pairs as one little-endian int32.
+    """
+    H, W = xn.shape
+    ox, oy, oz = o[0], o[1], o[2]
+    r00, r01, r02 = R[0, 0], R[0, 1], R[0, 2]
+    r10, r11, r12 = R[1, 0], R[1, 1], R[1, 2]
+    r20, r21, r22 = R[2, 0], R[2, 1], R[2, 2]
+    # exit planes: the far side along each axis (+ when the ray goes +)
+    xp, xm = room[0] + room[3] - ox, room[0] - room[3] - ox
+    yp, ym = room[1] + room[4] - oy, room[1] - room[4] - oy
+    zp, zm = room[2] + room[5] - oz, room[2] - room[5] - oz
+    it0, it1, it2, it3, it4, it5 = ft[0, 0], ft[1, 0], ft[2, 0], ft[3, 0], ft[4, 0], ft[5, 0]
+    vt0, vt1, vt2, vt3, vt4, vt5 = ft[0, 1], ft[1, 1], ft[2, 1], ft[3, 1], ft[4, 1], ft[5, 1]
+    ax0, ax1, ax2, ax3, ax4, ax5 = ft[0, 2], ft[1, 2], ft[2, 2], ft[3, 2], ft[4, 2], ft[5, 2]
+    ay0, ay1, ay2, ay3, ay4, ay5 = ft[0, 3], ft[1, 3], ft[2, 3], ft[3, 3], ft[4, 3], ft[5, 3]
+    cm0, cm1, cm2, cm3, cm4, cm5 = ft[0, 4], ft[1, 4], ft[2, 4], ft[3, 4], ft[4, 4], ft[5, 4]
+    rm0, rm1, rm2, rm3, rm4, rm5 = ft[0, 5], ft[1, 5], ft[2, 5], ft[3, 5], ft[4, 5], ft[5, 5]
+    for v in prange(H):
+        xr, yr, sr = xn[v], yn[v], inv_norm[v]
+        dr, lr, mr, fr = out_depth[v], out_label[v], out_map_xy[v], out_map_frac[v]
+        for u in range(W):
+            x = xr[u]
+            y = yr[u]
+            s = sr[u]
+            dx = (r00 * x + r01 * y + r02) * s
+            dy = (r10 * x + r11 * y + r12) * s
+            dz = (r20 * x + r21 * y + r22) * s
+            okx = abs(dx) > 1e-12
+            oky = abs(dy) > 1e-12
+            okz = abs(dz) > 1e-12
+            tx = (xp if dx > 0.0 else xm) / (dx if okx else 1.0)
+            tx = tx if okx else _INF
+            ty = (yp if dy > 0.0 else ym) / (dy if oky else 1.0)
+            ty = ty if oky else _INF
+            tz = (zp if dz > 0.0 else zm) / (dz if okz else 1.0)
+            tz = tz if okz else _INF
+            # the first exit, x before y before z on ties (as _render_kernel)
+            t = tx
+            face = 1 if dx > 0.0 else 0
+            sel = ty < t
+            t = ty if sel else t
+            face = (3 if dy > 0.0 else 2) if sel else face
+            sel = tz < t
+            t = tz if sel else t
+            face = (5 if dz > 0.0 else 4) if sel else face
+            # face texture coordinates (_box_uv of the room box), texel grid (_atlas_map)
+            lx = ox + t * dx - room[0] + room[3]
+            ly = oy + t * dy - room[1] + room[4]
+            lz = oz + t * dz - room[2] + room[5]
+            uu = ly if face < 2 else lx
+            vv = ly if face >= 4 else lz
+            inv_texel = _pick(face, it0, it1, it2, it3, it4, it5)
+            c = min(max(uu * inv_texel, 0.0), _pick(face, cm0, cm1, cm2, cm3, cm4, cm5))
+            r = min(max((_pick(face, vt0, vt1, vt2, vt3, vt4, vt5) - vv) * inv_texel, 0.0),
+                    _pick(face, rm0, rm1, rm2, rm3, rm4, rm5))
+            ix = np.int32((_pick(face, ax0, ax1, ax2, ax3, ax4, ax5) + c) * _REMAP_TAB + 0.5)
+            iy = np.int32((_pick(face, ay0, ay1, ay2, ay3, ay4, ay5) + r) * _REMAP_TAB + 0.5)
+            mr[u] = (ix >> _REMAP_BITS) | ((iy >> _REMAP_BITS) << 16)
+            fr[u] = np.uint16(((iy & (_REMAP_TAB - 1)) << _REMAP_BITS) | (ix & (_REMAP_TAB - 1)))
+            dr[u] = np.float32(t * s)
+            lr[u] = 0
+
+
 @njit(parallel=True, cache=True, fastmath=True, nogil=True)
 def _render_kernel(
     xn: F64,
     yn: F64,
     inv_norm: F64,
-    row_ymin: F64,
-    row_ymax: F64,
+    tile_bounds: F64,
     R: F64,
     o: F64,
     room: F64,
@@ -288,141 +417,181 @@ def _render_kernel(
     mat_f: F64,
     atlas: NDArray[np.uint32],
     dyn: F64,
+    to_maps: bool,
+    room_done: bool,
+    mat_xy: I64,
     out_bgr: NDArray[np.uint8],
     out_depth: NDArray[np.float32],
     out_label: NDArray[np.uint8],
+    out_map_xy: NDArray[np.int16],
+    out_map_frac: NDArray[np.uint16],
 ) -> None:
     H, W = xn.shape
     N = ptype.shape[0]
     ox, oy, oz = o[0], o[1], o[2]
-    # rows interleaved over chunks: every chunk gets top (cheap) and bottom (busy) rows
-    n_chunks = min(H, 64)
+    TH, TW = tile_bounds.shape[0], tile_bounds.shape[1]
+    # tiles interleaved over chunks: every chunk gets cheap (top) and busy (bottom) tiles
+    n_chunks = min(TH * TW, 64)
     for chunk in prange(n_chunks):
         cand = np.empty(N, np.int64)
         col = np.empty(3, np.float64)
-        for v in range(chunk, H, n_chunks):
+        for ti in range(chunk, TH * TW, n_chunks):
+            ty = ti // TW
+            tx = ti - ty * TW
+            # the primitives whose screen rectangle meets the tile's, nearest first
+            tb = tile_bounds[ty, tx]
             nc = 0
             for k in range(N):
-                if prect[k, 2] <= row_ymax[v] and prect[k, 3] >= row_ymin[v]:
+                if (prect[k, 0] <= tb[1] and prect[k, 1] >= tb[0]
+                        and prect[k, 2] <= tb[3] and prect[k, 3] >= tb[2]):
                     cand[nc] = k
                     nc += 1
-            for u in range(W):
-                x = xn[v, u]
-                y = yn[v, u]
-                s = inv_norm[v, u]
-                dx = (R[0, 0] * x + R[0, 1] * y + R[0, 2]) * s
-                dy = (R[1, 0] * x + R[1, 1] * y + R[1, 2]) * s
-                dz = (R[2, 0] * x + R[2, 1] * y + R[2, 2]) * s
-                # room (from inside): exit distance
-                t = _INF
-                face = -1
-                if dx > 1e-12:
-                    tt = (room[0] + room[3] - ox) / dx
-                    if tt < t:
-                        t, face = tt, 1
-                elif dx < -1e-12:
-                    tt = (room[0] - room[3] - ox) / dx
-                    if tt < t:
-                        t, face = tt, 0
-                if dy > 1e-12:
-                    tt = (room[1] + room[4] - oy) / dy
-                    if tt < t:
-                        t, face = tt, 3
-                elif dy < -1e-12:
-                    tt = (room[1] - room[4] - oy) / dy
-                    if tt < t:
-                        t, face = tt, 2
-                if dz > 1e-12:
-                    tt = (room[2] + room[5] - oz) / dz
-                    if tt < t:
-                        t, face = tt, 5
-                elif dz < -1e-12:
-                    tt = (room[2] - room[5] - oz) / dz
-                    if tt < t:
-                        t, face = tt, 4
-                best = -1
-                for ci in range(nc):
-                    k = cand[ci]
-                    if pdmin[k] >= t:
-                        break  # sorted by distance: nothing further can be nearer
-                    if x < prect[k, 0] or x > prect[k, 1] or y < prect[k, 2] or y > prect[k, 3]:
-                        continue
-                    typ = ptype[k]
-                    if typ == 0:
-                        tk, fk = _hit_box(ox, oy, oz, dx, dy, dz, pgeom[k])
-                    elif typ == 1:
-                        tk, fk = _hit_cyl(ox, oy, oz, dx, dy, dz, pgeom[k])
-                    elif typ == 2:
-                        tk, fk = _hit_sph(ox, oy, oz, dx, dy, dz, pgeom[k])
-                    else:
-                        tk, fk = _hit_cap(ox, oy, oz, dx, dy, dz, pgeom[k])
-                    if tk > 0.0 and tk < t:
-                        t = tk
-                        best = k
-                        face = fk
-                px = ox + t * dx
-                py = oy + t * dy
-                pz = oz + t * dz
-                nx = 0.0
-                ny = 0.0
-                nz = 1.0
-                if best < 0:
-                    m = room_mat[face]
-                    uu, vv = _box_uv(px - room[0], py - room[1], pz - room[2], room, face)
-                    label = 0
-                else:
-                    g = pgeom[best]
-                    typ = ptype[best]
-                    m = pmat[best, face]
-                    label = plabel[best]
-                    if typ == 0:
-                        c, sn = g[6], g[7]
-                        rx, ry = px - g[0], py - g[1]
-                        uu, vv = _box_uv(c * rx + sn * ry, -sn * rx + c * ry, pz - g[2], g, face)
-                        a = face // 2
-                        sg = 1.0 if face % 2 == 1 else -1.0
-                        if a == 0:
-                            nx, ny, nz = c * sg, sn * sg, 0.0
-                        elif a == 1:
-                            nx, ny, nz = -sn * sg, c * sg, 0.0
+            if nc == 0 and room_done:
+                continue  # the room alone: _room_map_kernel did these pixels
+            v0 = ty * _TILE_H
+            v1 = min(v0 + _TILE_H, H)
+            u0 = tx * _TILE_W
+            u1 = min(u0 + _TILE_W, W)
+            for v in range(v0, v1):
+                for u in range(u0, u1):
+                    x = xn[v, u]
+                    y = yn[v, u]
+                    if room_done:
+                        inside = False
+                        for ci in range(nc):
+                            k = cand[ci]
+                            if (prect[k, 0] <= x <= prect[k, 1]
+                                    and prect[k, 2] <= y <= prect[k, 3]):
+                                inside = True
+                                break
+                        if not inside:
+                            continue  # no primitive here: the room pass's pixel stands
+                    s = inv_norm[v, u]
+                    dx = (R[0, 0] * x + R[0, 1] * y + R[0, 2]) * s
+                    dy = (R[1, 0] * x + R[1, 1] * y + R[1, 2]) * s
+                    dz = (R[2, 0] * x + R[2, 1] * y + R[2, 2]) * s
+                    # room (from inside): exit distance
+                    t = _INF
+                    face = -1
+                    if dx > 1e-12:
+                        tt = (room[0] + room[3] - ox) / dx
+                        if tt < t:
+                            t, face = tt, 1
+                    elif dx < -1e-12:
+                        tt = (room[0] - room[3] - ox) / dx
+                        if tt < t:
+                            t, face = tt, 0
+                    if dy > 1e-12:
+                        tt = (room[1] + room[4] - oy) / dy
+                        if tt < t:
+                            t, face = tt, 3
+                    elif dy < -1e-12:
+                        tt = (room[1] - room[4] - oy) / dy
+                        if tt < t:
+                            t, face = tt, 2
+                    if dz > 1e-12:
+                        tt = (room[2] + room[5] - oz) / dz
+                        if tt < t:
+                            t, face = tt, 5
+                    elif dz < -1e-12:
+                        tt = (room[2] - room[5] - oz) / dz
+                        if tt < t:
+                            t, face = tt, 4
+                    best = -1
+                    for ci in range(nc):
+                        k = cand[ci]
+                        if pdmin[k] >= t:
+                            break  # sorted by distance: nothing further can be nearer
+                        if (x < prect[k, 0] or x > prect[k, 1]
+                                or y < prect[k, 2] or y > prect[k, 3]):
+                            continue
+                        typ = ptype[k]
+                        if typ == 0:
+                            tk, fk = _hit_box(ox, oy, oz, dx, dy, dz, pgeom[k])
+                        elif typ == 1:
+                            tk, fk = _hit_cyl(ox, oy, oz, dx, dy, dz, pgeom[k])
+                        elif typ == 2:
+                            tk, fk = _hit_sph(ox, oy, oz, dx, dy, dz, pgeom[k])
                         else:
-                            nx, ny, nz = 0.0, 0.0, sg
-                    elif typ == 1:
-                        rx, ry = px - g[0], py - g[1]
-                        if face == 0:
-                            uu = (math.atan2(ry, rx) + math.pi) * g[2]
-                            vv = pz - g[3]
-                            nx, ny, nz = rx / g[2], ry / g[2], 0.0
-                        else:
-                            uu = rx + g[2]
-                            vv = ry + g[2]
-                    elif typ == 2:
-                        rx, ry, rz = px - g[0], py - g[1], pz - g[2]
-                        uu = (math.atan2(ry, rx) + math.pi) * g[3]
-                        vv = rz + g[3]
-                        nx, ny, nz = rx / g[3], ry / g[3], rz / g[3]
+                            tk, fk = _hit_cap(ox, oy, oz, dx, dy, dz, pgeom[k])
+                        if tk > 0.0 and tk < t:
+                            t = tk
+                            best = k
+                            face = fk
+                    px = ox + t * dx
+                    py = oy + t * dy
+                    pz = oz + t * dz
+                    nx = 0.0
+                    ny = 0.0
+                    nz = 1.0
+                    if best < 0:
+                        m = room_mat[face]
+                        uu, vv = _box_uv(px - room[0], py - room[1], pz - room[2], room, face)
+                        label = 0
                     else:
-                        bax, bay, baz = g[3] - g[0], g[4] - g[1], g[5] - g[2]
-                        hh = ((px - g[0]) * bax + (py - g[1]) * bay + (pz - g[2]) * baz) / (
-                            bax * bax + bay * bay + baz * baz
-                        )
-                        hh = min(max(hh, 0.0), 1.0)
-                        nx = (px - g[0] - bax * hh) / g[6]
-                        ny = (py - g[1] - bay * hh) / g[6]
-                        nz = (pz - g[2] - baz * hh) / g[6]
-                        uu = 0.0
-                        vv = 0.0
-                textured = _fetch(mat_i, mat_f, atlas, m, uu, vv, col)
-                if not textured:
-                    lam = nx * dyn[0] + ny * dyn[1] + nz * dyn[2]
-                    sh = dyn[3] + dyn[4] * max(lam, 0.0)
-                    col[0] *= sh
-                    col[1] *= sh
-                    col[2] *= sh
-                for k in range(3):
-                    out_bgr[v, u, k] = np.uint8(min(max(col[k] + 0.5, 0.0), 255.0))
-                out_depth[v, u] = np.float32(t * s)
-                out_label[v, u] = label
+                        g = pgeom[best]
+                        typ = ptype[best]
+                        m = pmat[best, face]
+                        label = plabel[best]
+                        if typ == 0:
+                            c, sn = g[6], g[7]
+                            rx, ry = px - g[0], py - g[1]
+                            uu, vv = _box_uv(c * rx + sn * ry, -sn * rx + c * ry, pz - g[2], g,
+                                             face)
+                            a = face // 2
+                            sg = 1.0 if face % 2 == 1 else -1.0
+                            if a == 0:
+                                nx, ny, nz = c * sg, sn * sg, 0.0
+                            elif a == 1:
+                                nx, ny, nz = -sn * sg, c * sg, 0.0
+                            else:
+                                nx, ny, nz = 0.0, 0.0, sg
+                        elif typ == 1:
+                            rx, ry = px - g[0], py - g[1]
+                            if face == 0:
+                                uu = (math.atan2(ry, rx) + math.pi) * g[2]
+                                vv = pz - g[3]
+                                nx, ny, nz = rx / g[2], ry / g[2], 0.0
+                            else:
+                                uu = rx + g[2]
+                                vv = ry + g[2]
+                        elif typ == 2:
+                            rx, ry, rz = px - g[0], py - g[1], pz - g[2]
+                            uu = (math.atan2(ry, rx) + math.pi) * g[3]
+                            vv = rz + g[3]
+                            nx, ny, nz = rx / g[3], ry / g[3], rz / g[3]
+                        else:
+                            bax, bay, baz = g[3] - g[0], g[4] - g[1], g[5] - g[2]
+                            hh = ((px - g[0]) * bax + (py - g[1]) * bay + (pz - g[2]) * baz) / (
+                                bax * bax + bay * bay + baz * baz
+                            )
+                            hh = min(max(hh, 0.0), 1.0)
+                            nx = (px - g[0] - bax * hh) / g[6]
+                            ny = (py - g[1] - bay * hh) / g[6]
+                            nz = (pz - g[2] - baz * hh) / g[6]
+                            uu = 0.0
+                            vv = 0.0
+                    out_depth[v, u] = np.float32(t * s)
+                    out_label[v, u] = label
+                    if to_maps:
+                        if mat_i[m, 2] != 0:
+                            # textured: where cv2.remap is to sample the 2D atlas
+                            _atlas_map(mat_i, mat_f, mat_xy, m, uu, vv, out_map_xy, out_map_frac,
+                                       v, u)
+                            continue
+                        # flat: shaded here; outside the atlas, so that remap leaves it
+                        out_map_xy[v, u, 0] = -8
+                        out_map_xy[v, u, 1] = -8
+                        out_map_frac[v, u] = 0
+                    textured = _fetch(mat_i, mat_f, atlas, m, uu, vv, col)
+                    if not textured:
+                        lam = nx * dyn[0] + ny * dyn[1] + nz * dyn[2]
+                        sh = dyn[3] + dyn[4] * max(lam, 0.0)
+                        col[0] *= sh
+                        col[1] *= sh
+                        col[2] *= sh
+                    for k in range(3):
+                        out_bgr[v, u, k] = np.uint8(min(max(col[k] + 0.5, 0.0), 255.0))
 
 
 @njit(cache=True, nogil=True)
@@ -480,31 +649,63 @@ class RenderOutput:
     labels: NDArray[np.uint8]
 
 
+#: how :class:`Renderer` colours textured surfaces: ``remap`` (the kernel traces the rays and
+#: writes, per pixel, where in the texture atlas to sample; ``cv2.remap`` samples, bilinear in
+#: fixed point, outside the GIL) or ``raycast`` (the kernel samples the texture itself, in
+#: floating point). Depth and labels are the same; colours differ by rounding (a grey level,
+#: rarely two or three on the sharpest texture edges; ``tests/engine/test_studio.py``).
+RENDER_METHODS = ("remap", "raycast")
+
+
 class Renderer:
     """Renders a :class:`StudioScene` for one camera (intrinsics and distortion fixed).
 
     ``threads``: numba threads for one frame (1 by default: on a loaded 2-core machine one
     thread gives the best and steadiest frame rate, and leaves a core to the tracker; 0 means
-    numba's default, all cores). The kernel releases the GIL while it runs.
+    numba's default, all cores). The kernel releases the GIL while it runs, and so does
+    ``cv2.remap`` (``method``: :data:`RENDER_METHODS`).
     """
 
     def __init__(self, scene: StudioScene, intrinsics: Intrinsics, threads: int = 1,
-                 dynamic_light: F64 | None = None) -> None:
+                 dynamic_light: F64 | None = None, method: str = "remap") -> None:
+        if method not in RENDER_METHODS:
+            raise ValueError(f"render method {method!r} is not one of "
+                             f"{', '.join(RENDER_METHODS)}")
         self.scene = scene
         self.intrinsics = intrinsics
         self.threads = int(threads)
+        self.method = method
         w, h = intrinsics.width, intrinsics.height
         u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
         xy = pixels_to_normalized(intrinsics, np.stack([u.ravel(), v.ravel()], axis=1))
         self.xn = np.ascontiguousarray(xy[:, 0].reshape(h, w))
         self.yn = np.ascontiguousarray(xy[:, 1].reshape(h, w))
         self.inv_norm = 1.0 / np.sqrt(self.xn**2 + self.yn**2 + 1.0)
-        self.row_ymin = self.yn.min(axis=1)
-        self.row_ymax = self.yn.max(axis=1)
+        self.tile_bounds = _tile_bounds(self.xn, self.yn)
         # (direction, ambient, diffuse) of the flat materials' light (engine.studio.lighting)
         self._dyn = (np.array([*_DYN_LIGHT, _DYN_AMBIENT, _DYN_DIFFUSE]) if dynamic_light is None
                      else np.ascontiguousarray(dynamic_light, dtype=np.float64))
-        self._mat_i, self._mat_f, self._atlas = _pack_materials(scene)
+        self._mat_i, self._mat_f = _material_tables(scene)
+        if method == "remap":
+            self._atlas = np.zeros(1, np.uint32)  # the kernel samples no texture itself
+            self._atlas_2d, self._mat_xy = _atlas_2d(scene)
+            # the room pass needs textured, non-wrapping room faces (the built-in set's)
+            rm = np.asarray(scene.room_mat)
+            self._room_tex: F64 | None = None
+            if np.all(self._mat_i[rm, 2] > 0) and not np.any(self._mat_i[rm, 3]):
+                self._room_tex = np.ascontiguousarray(np.stack([
+                    self._mat_f[rm, 0], self._mat_f[rm, 1],
+                    self._mat_xy[rm, 0].astype(np.float64), self._mat_xy[rm, 1].astype(np.float64),
+                    self._mat_i[rm, 2] - 1.0, self._mat_i[rm, 1] - 1.0,
+                ], axis=1))
+            self._map_xy = np.empty((h, w, 2), np.int16)
+            self._map_frac = np.empty((h, w), np.uint16)
+        else:
+            self._atlas = _packed_atlas(scene)
+            self._room_tex = None
+            self._mat_xy = np.zeros((1, 2), np.int64)
+            self._map_xy = np.zeros((1, 1, 2), np.int16)
+            self._map_frac = np.zeros((1, 1), np.uint16)
 
     def render(
         self,
@@ -539,6 +740,8 @@ class Renderer:
                 np.empty((h, w), np.float32),
                 np.empty((h, w), np.uint8),
             )
+        remap = self.method == "remap"
+        room_pass = remap and self._room_tex is not None
         prev_threads = numba.get_num_threads()
         all_threads = numba_max_threads()
         want = all_threads if self.threads <= 0 else self.threads
@@ -546,12 +749,16 @@ class Renderer:
             # thread-local in numba: restored so that other kernels on this thread keep theirs
             numba.set_num_threads(max(1, min(want, all_threads)))
             try:
+                if room_pass:
+                    assert self._room_tex is not None
+                    _room_map_kernel(self.xn, self.yn, self.inv_norm, R, o, sc.room_geom,
+                                     self._room_tex, out.depth_m, out.labels,
+                                     self._map_xy.view(np.int32)[..., 0], self._map_frac)
                 _render_kernel(
                     self.xn,
                     self.yn,
                     self.inv_norm,
-                    self.row_ymin,
-                    self.row_ymax,
+                    self.tile_bounds,
                     R,
                     o,
                     sc.room_geom,
@@ -566,13 +773,36 @@ class Renderer:
                     self._mat_f,
                     self._atlas,
                     self._dyn,
+                    remap,
+                    room_pass,
+                    self._mat_xy,
                     out.color_bgr,
                     out.depth_m,
                     out.labels,
+                    self._map_xy,
+                    self._map_frac,
                 )
+                if remap:
+                    # under the lock: the maps are this renderer's, reused by its next frame;
+                    # pixels of flat materials point outside the atlas and keep their shading
+                    cv2.remap(self._atlas_2d, self._map_xy, self._map_frac, cv2.INTER_LINEAR,
+                              dst=out.color_bgr, borderMode=cv2.BORDER_TRANSPARENT)
             finally:
                 numba.set_num_threads(prev_threads)
         return out
+
+
+def _tile_bounds(xn: F64, yn: F64) -> F64:
+    """(rows, cols, 4) bounds (xmin, xmax, ymin, ymax) of the normalised coordinates of each
+    :data:`_TILE_H` x :data:`_TILE_W` pixel tile (the kernel's culling cells)."""
+    h, w = xn.shape
+    th, tw = -(-h // _TILE_H), -(-w // _TILE_W)
+    out = np.empty((th, tw, 4))
+    for ty in range(th):
+        for tx in range(tw):
+            sl = (slice(ty * _TILE_H, (ty + 1) * _TILE_H), slice(tx * _TILE_W, (tx + 1) * _TILE_W))
+            out[ty, tx] = (xn[sl].min(), xn[sl].max(), yn[sl].min(), yn[sl].max())
+    return out
 
 
 def _screen_rects(corners_world: F64, R_world_cam: F64, o_world: F64) -> F64:
@@ -599,17 +829,70 @@ def _screen_rects(corners_world: F64, R_world_cam: F64, o_world: F64) -> F64:
     return rect
 
 
-def _pack_materials(scene: StudioScene) -> tuple[NDArray[np.int64], F64, NDArray[np.uint32]]:
-    """Kernel-friendly material tables: ints (offset, rows, cols, wrap), floats
-    (1/texel, v_top, b, g, r in 0..255) and the atlas packed one uint32 per texel."""
+def _material_tables(scene: StudioScene) -> tuple[NDArray[np.int64], F64]:
+    """Kernel-friendly material tables: ints (offset, rows, cols, wrap) and floats
+    (1/texel, v_top, b, g, r in 0..255)."""
     m = scene.materials
     mat_i = np.ascontiguousarray(np.round(m[:, [0, 1, 2, 4]]).astype(np.int64))
     mat_f = np.ascontiguousarray(
         np.stack([1.0 / m[:, 3], m[:, 5], m[:, 6] * 255, m[:, 7] * 255, m[:, 8] * 255], axis=1)
     )
+    return mat_i, mat_f
+
+
+def _packed_atlas(scene: StudioScene) -> NDArray[np.uint32]:
+    """The atlas packed one uint32 per texel (b | g << 8 | r << 16): the ray caster's."""
     a = scene.atlas_bgr.astype(np.uint32)
-    atlas = np.ascontiguousarray(a[:, 0] | (a[:, 1] << 8) | (a[:, 2] << 16))
-    return mat_i, mat_f, atlas
+    return np.ascontiguousarray(a[:, 0] | (a[:, 1] << 8) | (a[:, 2] << 16))
+
+
+#: width of the 2D atlas (OpenCV's fixed-point maps address at most 32767 pixels)
+_ATLAS_2D_WIDTH = 4096
+_ATLAS_2D_CACHE: dict[int, tuple[weakref.ref[StudioScene], NDArray[np.uint8], I64]] = {}
+_ATLAS_2D_LOCK = threading.Lock()
+
+
+def _atlas_2d(scene: StudioScene) -> tuple[NDArray[np.uint8], I64]:
+    """The scene's textures as one BGR image for ``cv2.remap`` and each material's (x, y)
+    offset in it (flat materials: (0, 0)); one per scene, shared by its renderers.
+
+    Shelf packing, tallest first. Each texture gets a margin column and row (remap reads the
+    right and lower neighbours even at weight 0) and a wrapping one a copy of its first column
+    on the right, so that bilinear sampling wraps the way :func:`_fetch` does.
+    """
+    with _ATLAS_2D_LOCK:
+        hit = _ATLAS_2D_CACHE.get(id(scene))
+        if hit is not None and hit[0]() is scene:
+            return hit[1], hit[2]
+        mat_i, _ = _material_tables(scene)
+        xy = np.zeros((len(mat_i), 2), np.int64)
+        textured = [k for k in range(len(mat_i)) if mat_i[k, 2] > 0]
+        textured.sort(key=lambda k: (-int(mat_i[k, 1]), k))
+        x = y = shelf_h = 0
+        for k in textured:
+            slot_w, slot_h = int(mat_i[k, 2]) + 2, int(mat_i[k, 1]) + 1
+            if x + slot_w > _ATLAS_2D_WIDTH:
+                x, y, shelf_h = 0, y + shelf_h, 0
+            xy[k] = (x, y)
+            x += slot_w
+            shelf_h = max(shelf_h, slot_h)
+        height = y + shelf_h
+        if height > 32767:
+            raise ValueError(f"texture atlas of {height} rows: more than remap addresses")
+        img = np.zeros((max(height, 2), _ATLAS_2D_WIDTH, 3), np.uint8)
+        for k in textured:
+            off, th, tw, wrap = (int(v) for v in mat_i[k])
+            tex = scene.atlas_bgr[off:off + th * tw].reshape(th, tw, 3)
+            x0, y0 = int(xy[k, 0]), int(xy[k, 1])
+            img[y0:y0 + th, x0:x0 + tw] = tex
+            if wrap:
+                img[y0:y0 + th, x0 + tw] = tex[:, 0]
+        img.flags.writeable = False
+        xy.flags.writeable = False
+        for key in [k for k, v in _ATLAS_2D_CACHE.items() if v[0]() is None]:
+            del _ATLAS_2D_CACHE[key]
+        _ATLAS_2D_CACHE[id(scene)] = (weakref.ref(scene), img, xy)
+        return img, xy
 
 
 def core_boxes_from_labels(labels: NDArray[np.integer], codes: dict[str, int],

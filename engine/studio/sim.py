@@ -41,7 +41,13 @@ from engine.studio.ball import BallPath
 from engine.studio.lighting import LIGHTINGS, apply_gain
 from engine.studio.paths import CameraPath
 from engine.studio.presenter import PresenterScript, body_prims, concat_prims
-from engine.studio.render import Prims, Renderer, core_boxes_from_labels, label_boxes
+from engine.studio.render import (
+    RENDER_METHODS,
+    Prims,
+    Renderer,
+    core_boxes_from_labels,
+    label_boxes,
+)
 from engine.studio.scene import (
     BOX,
     LABEL_BALL,
@@ -148,12 +154,17 @@ class StudioConfig:
     zoom: ZoomScript | None = None  # a zoom lens (engine.studio.zoom): None = the fixed lens
     #: the second camera's zoom (views=2; engine.studio.views): None = its fixed wide lens
     over_zoom: ZoomScript | None = None
+    #: how textures are sampled (``engine.studio.render.RENDER_METHODS``): remap (fast) or
+    #: raycast (the kernel's own floating-point fetch; colours within a few grey levels)
+    render: str = "remap"
 
     def __post_init__(self) -> None:
         if self.lighting not in LIGHTINGS:
             raise ValueError(f"lighting {self.lighting!r} is not one of {', '.join(LIGHTINGS)}")
         if self.views not in (1, 2):
             raise ValueError(f"views must be 1 or 2, got {self.views}")
+        if self.render not in RENDER_METHODS:
+            raise ValueError(f"render {self.render!r} is not one of {', '.join(RENDER_METHODS)}")
         if self.over_zoom is not None and self.views != 2:
             raise ValueError("over_zoom needs views=2 (it zooms the second camera)")
 
@@ -175,7 +186,8 @@ class Studio:
     def renderer(self) -> Renderer:
         light = LIGHTINGS[self.config.lighting]
         return Renderer(self.scene, self.intrinsics, self.config.threads,
-                        None if light.name == "default" else light.dynamic_light())
+                        None if light.name == "default" else light.dynamic_light(),
+                        method=self.config.render)
 
     @cached_property
     def renderer2(self) -> Renderer:
@@ -185,7 +197,8 @@ class Studio:
         light = LIGHTINGS[self.config.lighting]
         return Renderer(self.scene, OVERHEAD.intrinsics(self.config.width, self.config.height),
                         self.config.threads,
-                        None if light.name == "default" else light.dynamic_light())
+                        None if light.name == "default" else light.dynamic_light(),
+                        method=self.config.render)
 
     @cached_property
     def floor_calibration(self) -> Any:
@@ -209,7 +222,8 @@ class Studio:
             cam, T = OVERHEAD.zoom_camera(cfg.width, cfg.height, enc.zoom_raw, enc.focus_raw)
             light = LIGHTINGS[cfg.lighting]
             cached = (T, Renderer(self.scene, cam, cfg.threads,
-                                  None if light.name == "default" else light.dynamic_light()))
+                                  None if light.name == "default" else light.dynamic_light(),
+                                  method=cfg.render))
             if len(self._over_renderers) >= 4:
                 self._over_renderers.pop(next(iter(self._over_renderers)))
             self._over_renderers[enc.zoom_raw] = cached
@@ -272,7 +286,8 @@ class Studio:
             cam = lens.intrinsics_at(enc.zoom_raw, enc.focus_raw)
             light = LIGHTINGS[self.config.lighting]
             cached = (cam, Renderer(self.scene, cam, self.config.threads,
-                                    None if light.name == "default" else light.dynamic_light()))
+                                    None if light.name == "default" else light.dynamic_light(),
+                                    method=self.config.render))
             if len(self._zoom_renderers) >= 4:
                 self._zoom_renderers.pop(next(iter(self._zoom_renderers)))
             self._zoom_renderers[enc.zoom_raw] = cached

@@ -38,6 +38,13 @@ def test_bench_render_json_and_preview(tmp_path: Path, capsys: pytest.CaptureFix
     assert (res["width"], res["height"]) == (160, 120)
     assert res["ms_median"] > 0
     assert res["presenter"]["cpu_ms_median"] >= 0
+    # the ray caster's own texture fetch as a peer, and how far its images are
+    assert res["raycast"]["ms_median"] > 0
+    assert res["ratio_raycast_over_presenter"] > 0
+    agree = res["raycast_agreement"]
+    assert agree["depth_abs_max_m"] == 0.0
+    assert agree["labels_frac_differ"] == 0.0
+    assert agree["colour_abs_max"] <= 6
     assert "open3d_depth_only" not in res  # the peer (open3d import ~8 s here) is skipped
     img = cv2.imread(str(preview))
     assert img.shape == (240, 320, 3)
