@@ -262,6 +262,8 @@ def _fetch(mat_i: I64, mat_f: F64, atlas: NDArray[np.uint32], m: int, u: float, 
     return True
 
 
+#: pixels of one cv2.remap call: OpenCV splits a call into total / 2**16 stripes (rounded)
+_REMAP_BAND_PX = 1 << 16
 #: sub-pixel steps of OpenCV's fixed-point remap maps (``cv2.INTER_BITS`` = 5)
 _REMAP_BITS = 5
 _REMAP_TAB = 1 << _REMAP_BITS
@@ -783,13 +785,26 @@ class Renderer:
                     self._map_frac,
                 )
                 if remap:
-                    # under the lock: the maps are this renderer's, reused by its next frame;
-                    # pixels of flat materials point outside the atlas and keep their shading
-                    cv2.remap(self._atlas_2d, self._map_xy, self._map_frac, cv2.INTER_LINEAR,
-                              dst=out.color_bgr, borderMode=cv2.BORDER_TRANSPARENT)
+                    self._sample(out.color_bgr)
             finally:
                 numba.set_num_threads(prev_threads)
         return out
+
+    def _sample(self, out_bgr: NDArray[np.uint8]) -> None:
+        """``cv2.remap`` of the atlas by this frame's maps into ``out_bgr`` (called under the
+        kernel lock: the maps are this renderer's, reused by its next frame). Pixels of flat
+        materials point outside the atlas and keep their shading (BORDER_TRANSPARENT).
+
+        In bands of fewer than 2**16 pixels: OpenCV runs such a call on the calling thread
+        (one stripe), so the sampling costs this thread's time at this thread's priority,
+        not OpenCV's worker pool's (which would compete with the tracker at its priority).
+        """
+        h, w = out_bgr.shape[:2]
+        band = max(1, _REMAP_BAND_PX // w)
+        for r0 in range(0, h, band):
+            r1 = min(h, r0 + band)
+            cv2.remap(self._atlas_2d, self._map_xy[r0:r1], self._map_frac[r0:r1],
+                      cv2.INTER_LINEAR, dst=out_bgr[r0:r1], borderMode=cv2.BORDER_TRANSPARENT)
 
 
 def _tile_bounds(xn: F64, yn: F64) -> F64:
