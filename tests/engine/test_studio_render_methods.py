@@ -13,7 +13,7 @@ from engine.errors import SourceError
 from engine.sources import open_source
 from engine.sources.synthetic import SyntheticSource
 from engine.studio.presenter import body_prims, concat_prims
-from engine.studio.render import Prims, RenderOutput, Renderer, _atlas_2d
+from engine.studio.render import Prims, Renderer, RenderOutput, _atlas_2d
 from engine.studio.scene import LABEL_SET, build_scene
 from engine.studio.sim import Studio, occluder_centre, occluder_prims
 
@@ -105,7 +105,8 @@ def test_the_2d_atlas_holds_every_texture_with_its_wrap_column() -> None:
     scene = build_scene(0)
     img, xy = _atlas_2d(scene)
     assert _atlas_2d(scene)[0] is img  # one per scene
-    assert img.shape[0] <= 32767 and img.shape[1] <= 32767
+    assert img.shape[0] <= 32767
+    assert img.shape[1] <= 32767
     m = scene.materials
     for k in range(len(m)):
         off, th, tw, wrap = int(m[k, 0]), int(m[k, 1]), int(m[k, 2]), bool(m[k, 4])
@@ -121,10 +122,12 @@ def test_the_2d_atlas_holds_every_texture_with_its_wrap_column() -> None:
 def test_render_option_picks_the_path_and_rejects_others() -> None:
     a = open_source("synthetic:frames=5,presenter=1,width=160,height=120,render=raycast")
     b = open_source("synthetic:frames=5,presenter=1,width=160,height=120")
-    assert isinstance(a, SyntheticSource) and isinstance(b, SyntheticSource)
+    assert isinstance(a, SyntheticSource)
+    assert isinstance(b, SyntheticSource)
     assert a.studio.renderer.method == "raycast"
     fa, fb = a.frame(3), b.frame(3)
-    assert fa.depth_m is not None and fb.depth_m is not None
+    assert fa.depth_m is not None
+    assert fb.depth_m is not None
     assert np.array_equal(fa.depth_m, fb.depth_m)
     assert fa.gt_box_xywh == fb.gt_box_xywh
     with pytest.raises(SourceError, match="render"):
