@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from engine.arrays import i32, u8
+from engine.arrays import u8
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -476,6 +476,23 @@ def _motion_update(gray: NDArray[np.uint8], step: int, prev: NDArray[np.uint8],
             S[y + 1, x + 1] = S[y, x + 1] + run
 
 
+@njit(cache=True, nogil=True)
+def _mask_integral(img: NDArray[np.uint8], floor: int) -> NDArray[np.int32]:
+    # cv2.integral((img > floor).astype(np.uint8), sdepth=cv2.CV_32S) in one pass
+    H, W = img.shape
+    S = np.empty((H + 1, W + 1), np.int32)
+    for x in range(W + 1):
+        S[0, x] = 0
+    for y in range(H):
+        S[y + 1, 0] = 0
+        run = 0
+        for x in range(W):
+            if img[y, x] > floor:
+                run += 1
+            S[y + 1, x + 1] = S[y, x + 1] + run
+    return S
+
+
 class MotionHistory:
     """Absolute motion history image z_mot (Bobick & Davis, the paper's ref. [8]).
 
@@ -519,10 +536,8 @@ class MotionHistory:
         > 0 only of the pixels that changed in the last ``recent_frames`` frames."""
         assert self.mhi is not None
         if recent_frames > 0:
-            floor = max(min(self.duration_frames, 255) - recent_frames, 0)
-            mask = (self.mhi > floor).astype(np.uint8)
-        elif self._integral is not None:
-            return self._integral  # made with the motion history image by update()
-        else:
-            mask = (self.mhi > 0).astype(np.uint8)
-        return i32(cv2.integral(mask, sdepth=cv2.CV_32S))
+            return _mask_integral(self.mhi, max(min(self.duration_frames, 255) - recent_frames,
+                                                0))
+        if self._integral is None:
+            self._integral = _mask_integral(self.mhi, 0)
+        return self._integral  # made with the motion history image by update()

@@ -221,3 +221,87 @@ def patch_hists(ih: F32, cell: float, ox: float, oy: float, img_w: int, img_h: i
         for b in range(n_bins_total):
             out[k, b] = full[b] / total
     return True
+
+
+@njit(cache=True, nogil=True)
+def background_bounds(k: F64, w: float, h: float, img_w: int,
+                      img_h: int) -> tuple[F64, F64, F64, F64]:
+    """The uniform draws' bounds of the background boxes' centres (``view.
+    ViewTracker._background_levels``): boxes of (w, h) x ``k``, wholly inside the image where
+    they fit."""
+    n = k.shape[0]
+    lo_x = np.empty(n)
+    hi_x = np.empty(n)
+    lo_y = np.empty(n)
+    hi_y = np.empty(n)
+    for i in range(n):
+        ws = w * k[i]
+        hs = h * k[i]
+        lo_x[i] = ws / 2
+        hi_x[i] = max(img_w - ws / 2, ws / 2 + 1e-6)
+        lo_y[i] = hs / 2
+        hi_y[i] = max(img_h - hs / 2, hs / 2 + 1e-6)
+    return lo_x, hi_x, lo_y, hi_y
+
+
+@njit(cache=True, nogil=True)
+def background_boxes(k: F64, cx: F64, cy: F64, x: float, y: float, w: float, h: float,
+                     img_w: int, img_h: int, max_keep: int) -> F64:
+    """The first ``max_keep`` sampled boxes (centre x, centre y, h) that overlap the box
+    (x, y, w, h) by IoU < 0.1 and fit in the image."""
+    n = k.shape[0]
+    out = np.empty((max_keep, 3))
+    m = 0
+    for i in range(n):
+        if m >= max_keep:
+            break
+        ws = w * k[i]
+        hs = h * k[i]
+        ix = min(cx[i] + ws / 2, x + w / 2) - max(cx[i] - ws / 2, x - w / 2)
+        iy = min(cy[i] + hs / 2, y + h / 2) - max(cy[i] - hs / 2, y - h / 2)
+        ix = max(ix, 0.0)
+        iy = max(iy, 0.0)
+        inter = ix * iy
+        iou = inter / (ws * hs + w * h - inter)
+        if iou < 0.1 and ws <= img_w and hs <= img_h:
+            out[m, 0] = cx[i]
+            out[m, 1] = cy[i]
+            out[m, 2] = hs
+            m += 1
+    return out[:m]
+
+
+@njit(cache=True, nogil=True)
+def _quantile_sorted(s: F64, q: float) -> float:
+    # np.quantile's 'linear' method on sorted values (NaN sorted last): virtual index
+    # (n - 1) q, numpy's _lerp between its neighbours
+    n = s.shape[0]
+    if math.isnan(s[n - 1]):
+        return math.nan
+    v = (n - 1) * q
+    if v >= n - 1:
+        return float(s[n - 1])
+    p = math.floor(v)
+    a = s[p]
+    b = s[p + 1]
+    g = v - p
+    d = b - a
+    if g >= 0.5:
+        return float(b - d * (1 - g))
+    return float(a + d * g)
+
+
+@njit(cache=True, nogil=True)
+def quantile_columns(r: F64, q: float) -> F64:
+    """``np.quantile(r, q, axis=0)`` (method 'linear') of a 2-D array."""
+    out = np.empty(r.shape[1])
+    for j in range(r.shape[1]):
+        out[j] = _quantile_sorted(np.sort(r[:, j]), q)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def quantile(v: F64, q: float) -> float:
+    """``np.quantile(v, q)`` (method 'linear') of a 1-D array."""
+    return _quantile_sorted(np.sort(v), q)
+

@@ -288,28 +288,21 @@ class ViewTracker:
         rng = self._bg_rng
         n = 4 * BG_SAMPLES
         k = rng.uniform(0.8, 1.25, n)
-        hs, ws = h * k, w * k
-        cx = rng.uniform(ws / 2, np.maximum(W - ws / 2, ws / 2 + 1e-6))
-        cy = rng.uniform(hs / 2, np.maximum(H - hs / 2, hs / 2 + 1e-6))
-        ix = np.clip(np.minimum(cx + ws / 2, x + w / 2) - np.maximum(cx - ws / 2, x - w / 2),
-                     0, None)
-        iy = np.clip(np.minimum(cy + hs / 2, y + h / 2) - np.maximum(cy - hs / 2, y - h / 2),
-                     0, None)
-        inter = ix * iy
-        iou = inter / (ws * hs + w * h - inter)
-        keep = np.flatnonzero((iou < 0.1) & (ws <= W) & (hs <= H))[:BG_SAMPLES]
-        if len(keep) < 8:
+        lo_x, hi_x, lo_y, hi_y = sk.background_bounds(k, w, h, W, H)
+        cx = rng.uniform(lo_x, hi_x)
+        cy = rng.uniform(lo_y, hi_y)
+        boxes = sk.background_boxes(k, cx, cy, x, y, w, h, W, H, BG_SAMPLES)
+        if len(boxes) < 8:
             return  # no room for background beside the target: beta stays as it was
-        states = np.stack([cx[keep], cy[keep], hs[keep]], axis=1) / step
+        states = boxes / step
         r = fc.patch_b2(ctx, states, self._rel, self.model.aspect, self._sqrt_ref0)
-        beta = np.quantile(r, self.params.loss_bg_quantile, axis=0)
+        beta = sk.quantile_columns(r, self.params.loss_bg_quantile)
         self._beta = beta if self._beta is None else self._beta + 0.2 * (beta - self._beta)
         recent = self._recent_motion_integral()
         if recent is not None:
-            boxes = np.stack([cx[keep], cy[keep], hs[keep]], axis=1)
             moving = 1.0 - motion_residuals(recent, boxes, self._rel, self.model.aspect,
                                             MOTION_STEP)
-            self._motion_bg = float(np.quantile(moving, MOTION_BG_QUANTILE))
+            self._motion_bg = sk.quantile(moving, MOTION_BG_QUANTILE)
 
     def _recent_motion_integral(self) -> Any:
         """Integral of the pixels that moved in the last ``MOTION_RECENT_FRAMES`` frames

@@ -123,3 +123,36 @@ def test_motion_history_on_a_channel_view_is_the_copied_frames() -> None:
         assert np.array_equal(mh.motion_integral(), ref_s)
         ref_r = i32(cv2.integral((ref_mhi > 2).astype(np.uint8), sdepth=cv2.CV_32S))
         assert np.array_equal(mh.motion_integral(3), ref_r)
+
+
+def test_quantiles_are_numpys() -> None:
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 3, 9, 10, 11, 96, 97):
+        for q in (0.0, 0.1, 0.5, 0.9, 1.0):
+            r = rng.standard_normal((n, 3))
+            r[rng.integers(0, n)] = r[0]  # ties
+            assert np.array_equal(sk.quantile_columns(r, q), np.quantile(r, q, axis=0))
+            assert sk.quantile(r[:, 0], q) == float(np.quantile(r[:, 0], q))
+    assert np.isnan(sk.quantile(np.array([0.0, np.nan, 1.0]), 0.5))
+
+
+def test_background_boxes_are_the_numpy_selection() -> None:
+    rng = np.random.default_rng(8)
+    for x, y, w, h in ((320.0, 240.0, 60.0, 200.0), (40.0, 300.0, 150.0, 400.0)):
+        k = rng.uniform(0.8, 1.25, 384)
+        hs, ws = h * k, w * k
+        lo_x, hi_x, lo_y, hi_y = sk.background_bounds(k, w, h, 640, 480)
+        assert np.array_equal(lo_x, ws / 2)
+        assert np.array_equal(hi_x, np.maximum(640 - ws / 2, ws / 2 + 1e-6))
+        assert np.array_equal(hi_y, np.maximum(480 - hs / 2, hs / 2 + 1e-6))
+        cx, cy = rng.uniform(lo_x, hi_x), rng.uniform(lo_y, hi_y)
+        # the selection view.ViewTracker._background_levels made with numpy
+        ix = np.clip(np.minimum(cx + ws / 2, x + w / 2) - np.maximum(cx - ws / 2, x - w / 2),
+                     0, None)
+        iy = np.clip(np.minimum(cy + hs / 2, y + h / 2) - np.maximum(cy - hs / 2, y - h / 2),
+                     0, None)
+        inter = ix * iy
+        iou = inter / (ws * hs + w * h - inter)
+        keep = np.flatnonzero((iou < 0.1) & (ws <= 640) & (hs <= 480))[:96]
+        ref = np.stack([cx[keep], cy[keep], hs[keep]], axis=1)
+        assert np.array_equal(sk.background_boxes(k, cx, cy, x, y, w, h, 640, 480, 96), ref)
