@@ -375,9 +375,11 @@ def _ring_bc(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: fl
     ring_area = (ox1 - ox0) * (oy1 - oy0) - (vx1 - vx0) * (vy1 - vy0)
     if total <= 1e-9 or ring_area < 0.25 * ((ww + 2 * mx) * (hh + 2 * my) - ww * hh):
         return 0.0
+    for k in range(nk):
+        outer[k] = math.sqrt(outer[k] / total)  # vectorised, as in likelihood._rect_b2
     bc = 0.0
     for k in range(nk):
-        bc += math.sqrt(outer[k] / total) * sqrt_ref[k]
+        bc += outer[k] * sqrt_ref[k]
     return bc
 
 

@@ -211,9 +211,11 @@ def binned_integral(hsv_roi: NDArray[np.uint8], n: int, cell: int = 1,
                             bool(SOFT_DEFAULT if soft is None else soft))
 
 
-@njit(cache=True, nogil=True)
-def _add_corner(ih: F32, u: float, v: float, sign: float, out: F64) -> None:
-    # bilinear interpolation of the integral histogram at grid coordinates (u, v)
+@njit(cache=True, nogil=True, inline="always")
+def _corner(ih: F32, u: float, v: float,
+            sign: float) -> tuple[int, int, int, int, float, float, float, float]:
+    # bilinear interpolation of the integral histogram at grid coordinates (u, v): the four
+    # nodes (rows iv, iv1; columns iu, iu1) and their signed weights
     hc = ih.shape[0] - 1
     wc = ih.shape[1] - 1
     u = min(max(u, 0.0), float(wc))
@@ -226,24 +228,28 @@ def _add_corner(ih: F32, u: float, v: float, sign: float, out: F64) -> None:
     w01 = sign * fu * (1 - fv)
     w10 = sign * (1 - fu) * fv
     w11 = sign * fu * fv
-    iu1 = min(iu + 1, wc)
-    iv1 = min(iv + 1, hc)
-    n00 = ih[iv, iu]
-    n01 = ih[iv, iu1]
-    n10 = ih[iv1, iu]
-    n11 = ih[iv1, iu1]
-    for b in range(out.shape[0]):
-        out[b] += w00 * n00[b] + w01 * n01[b] + w10 * n10[b] + w11 * n11[b]
+    return iu, min(iu + 1, wc), iv, min(iv + 1, hc), w00, w01, w10, w11
 
 
 @njit(cache=True, nogil=True)
 def _rect_hist(ih: F32, cell: float, x0: float, y0: float, x1: float, y1: float,
                out: F64) -> None:
-    out[:] = 0.0
-    _add_corner(ih, x1 / cell, y1 / cell, 1.0, out)
-    _add_corner(ih, x0 / cell, y1 / cell, -1.0, out)
-    _add_corner(ih, x1 / cell, y0 / cell, -1.0, out)
-    _add_corner(ih, x0 / cell, y0 / cell, 1.0, out)
+    # counts of the rectangle: + (x1, y1) - (x0, y1) - (x1, y0) + (x0, y0), each corner
+    # bilinear between four nodes; one pass over the bins, each bin summed from 0 corner
+    # by corner in that order
+    au, au1, av, av1, a00, a01, a10, a11 = _corner(ih, x1 / cell, y1 / cell, 1.0)
+    bu, bu1, bv, bv1, b00, b01, b10, b11 = _corner(ih, x0 / cell, y1 / cell, -1.0)
+    cu, cu1, cv, cv1, c00, c01, c10, c11 = _corner(ih, x1 / cell, y0 / cell, -1.0)
+    du, du1, dv, dv1, d00, d01, d10, d11 = _corner(ih, x0 / cell, y0 / cell, 1.0)
+    ra00, ra01, ra10, ra11 = ih[av, au], ih[av, au1], ih[av1, au], ih[av1, au1]
+    rb00, rb01, rb10, rb11 = ih[bv, bu], ih[bv, bu1], ih[bv1, bu], ih[bv1, bu1]
+    rc00, rc01, rc10, rc11 = ih[cv, cu], ih[cv, cu1], ih[cv1, cu], ih[cv1, cu1]
+    rd00, rd01, rd10, rd11 = ih[dv, du], ih[dv, du1], ih[dv1, du], ih[dv1, du1]
+    for k in range(out.shape[0]):
+        acc = 0.0 + (a00 * ra00[k] + a01 * ra01[k] + a10 * ra10[k] + a11 * ra11[k])
+        acc = acc + (b00 * rb00[k] + b01 * rb01[k] + b10 * rb10[k] + b11 * rb11[k])
+        acc = acc + (c00 * rc00[k] + c01 * rc01[k] + c10 * rc10[k] + c11 * rc11[k])
+        out[k] = acc + (d00 * rd00[k] + d01 * rd01[k] + d10 * rd10[k] + d11 * rd11[k])
 
 
 def rect_histogram(integral: F32, cell: int, xywh: tuple[float, float, float, float]) -> F64:
@@ -281,9 +287,13 @@ def _rect_b2(ih: F32, cell: float, ox: float, oy: float, roi_w: float, roi_h: fl
         total += hist[b]
     if total <= 1e-9:
         return 1.0
+    # sqrt(q(n)) first, in a loop of its own (vectorised: the same correctly rounded
+    # divisions and roots), then the sum in bin order
+    for b in range(hist.shape[0]):
+        hist[b] = math.sqrt(hist[b] / total)
     bc = 0.0
     for b in range(hist.shape[0]):
-        bc += math.sqrt(hist[b] / total) * sqrt_ref[b]
+        bc += hist[b] * sqrt_ref[b]
     vis = min((vx1 - vx0) * (vy1 - vy0) / area, 1.0)
     return vis * max(1.0 - bc, 0.0) + (1.0 - vis) * outside_b2
 
