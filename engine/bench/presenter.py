@@ -13,7 +13,9 @@ Side by side in one process, on the same preloaded frames (decoding is not timed
   (``PAPER_PRESET``), ``presenter_noloss`` the default with the loss test off;
 - ``presenter.success_auc_heldout``: leave-one-sequence-out (``engine.bench.presenter_loo``):
   the defaults chosen on all the other sequences, run on this one;
-- speed: the presenter tracker at 640x480 with 100 particles and 3 patches;
+- speed: the presenter tracker at 640x480 with 100 particles and 3 patches (``--speed-only``:
+  this and the presenter against CSRT on studio + studio_warm, colour_summary's
+  ``fps_ratio_to_csrt``, nothing else);
 - loss (``engine.bench.presenter_scenarios``): the desk scenario (frames to LOST, frames to
   re-acquire, false locks) and a normal walk (false LOST frames), for the default and the
   paper preset, with the studio's part boxes as the model and with the first box split;
@@ -57,6 +59,9 @@ ALL_TRACKERS = ("presenter", "paper", "kcf", "mil", "csrt", "presenter_noloss")
 #: the filter's seeds the second-person scenarios run the default with
 DISTRACTOR_SEEDS = (0, 1, 2, 3, 4)
 DEFAULT_TRACKERS = ALL_TRACKERS
+#: ``--speed-only``: the sequences and trackers of the frame-rate comparison
+SPEED_SEQUENCES = ("studio", "studio_warm")
+SPEED_TRACKERS = ("presenter", "csrt")
 
 __all__ = ["ALL_SEQUENCES", "BENCHES", "run", "shared_data_dir"]
 
@@ -87,6 +92,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="skip the two-view (floor distance) scenario")
     parser.add_argument("--skip-robot", action="store_true",
                         help="skip the closed-loop robot-camera scenario")
+    parser.add_argument("--speed-only", action="store_true",
+                        help="only the frame rates: the presenter and CSRT on "
+                             f"{','.join(SPEED_SEQUENCES)} (colour_summary's "
+                             "fps_ratio_to_csrt) and the speed part; every other part skipped")
 
 
 # ------------------------------------------------------------------------------ running
@@ -442,6 +451,11 @@ def _summary(results: dict[str, Any], key: str, seqs: list[str]) -> dict[str, An
 def run(args: argparse.Namespace) -> dict[str, Any]:
     seqs = [s.strip() for s in args.sequences.split(",") if s.strip()]
     trackers = [t.strip() for t in args.trackers.split(",") if t.strip()]
+    if getattr(args, "speed_only", False):
+        seqs, trackers = list(SPEED_SEQUENCES), list(SPEED_TRACKERS)
+        args = argparse.Namespace(**{**vars(args), "skip_loo": True, "skip_loss": True,
+                                     "skip_jitter": True, "skip_distractor": True,
+                                     "skip_two_view": True, "skip_robot": True})
     bad = [s for s in seqs if s not in ALL_SEQUENCES] + [t for t in trackers
                                                         if t not in ALL_TRACKERS]
     if bad:

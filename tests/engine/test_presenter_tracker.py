@@ -152,3 +152,18 @@ def test_bench_presenter_json_line() -> None:
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     for name in ("presenter", "kcf"):
         assert set(out["otb_girl"][name]) >= {"success_auc", "precision_20px", "fps"}
+
+
+def test_bench_presenter_speed_only_runs_the_frame_rate_parts() -> None:
+    import argparse
+
+    from engine.bench import presenter as bench
+
+    parser = argparse.ArgumentParser()
+    bench.add_arguments(parser)
+    out = bench.run(parser.parse_args(["--speed-only", "--frames", "6"]))
+    assert set(out) == {*bench.SPEED_SEQUENCES, "colour_summary", "speed"}
+    for seq in bench.SPEED_SEQUENCES:
+        assert set(out[seq]) == set(bench.SPEED_TRACKERS)
+    assert out["colour_summary"]["fps_ratio_to_csrt"] > 0
+    assert set(out["speed"]["median_stage_ms"]) >= {"motion_ms", "likelihood_ms", "total_ms"}
