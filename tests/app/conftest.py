@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import socket
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,25 @@ import pytest
 #: a small built-in studio: fast to render and to track in tests
 SMALL_STUDIO = "synthetic:frames=100000,width=160,height=120,presenter=1,path=rail"
 REAL_TRACKER = "opencv-odometry"
+
+
+@pytest.fixture
+def udp_rx() -> Iterator[Callable[[], socket.socket]]:
+    """Factory of loopback UDP receivers (127.0.0.1, a port the OS picks, 2 s timeout), all
+    closed at teardown, also when the test fails or skips (an unclosed socket collected in a
+    later test fails that test with a ResourceWarning)."""
+    socks: list[socket.socket] = []
+
+    def make() -> socket.socket:
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        socks.append(s)
+        s.bind(("127.0.0.1", 0))
+        s.settimeout(2.0)
+        return s
+
+    yield make
+    for s in socks:
+        s.close()
 
 
 @pytest.fixture

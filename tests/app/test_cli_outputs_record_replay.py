@@ -67,11 +67,9 @@ def test_bad_output_options_raise_clear_errors(bad):
         config_from_args(_args(*bad))
 
 
-def test_record_with_outputs_then_replay(tmp_path, capsys):
+def test_record_with_outputs_then_replay(tmp_path, capsys, udp_rx):
     tum = shared_path("tum_fr1_xyz_37")
-    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    rx.bind(("127.0.0.1", 0))
-    rx.settimeout(2.0)
+    rx = udp_rx()
     sess = tmp_path / "sess"
     rc = main(
         [
@@ -89,7 +87,6 @@ def test_record_with_outputs_then_replay(tmp_path, capsys):
     )
     assert rc == 0
     got = [fd.decode_d1(rx.recv(64)) for _ in range(6)]
-    rx.close()
     assert all(p.camera_id == 1 for p in got)
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert out["frames"] == 6
@@ -159,23 +156,18 @@ def test_listen_decodes_packets(capsys):
     assert any("LOST" in ln for ln in out)
 
 
-def test_track_sends_one_freed_and_one_opentrackio_packet_per_frame(tmp_path, capsys):
+def test_track_sends_one_freed_and_one_opentrackio_packet_per_frame(tmp_path, capsys, udp_rx):
     from engine.outputs import opentrackio as ot
 
-    rx_f = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    rx_o = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    for s in (rx_f, rx_o):
-        s.bind(("127.0.0.1", 0))
-        s.settimeout(2.0)
-    rc = main(["track", str(shared_path("tum_fr1_xyz_37")), "--tracker", "ground-truth",
+    tum = shared_path("tum_fr1_xyz_37")
+    rx_f, rx_o = udp_rx(), udp_rx()
+    rc = main(["track", str(tum), "--tracker", "ground-truth",
                "--out", str(tmp_path / "t.txt"), "--max-frames", "5", "--json",
                "--freed", f"127.0.0.1:{rx_f.getsockname()[1]}", "--freed-camera-id", "9",
                "--opentrackio", f"127.0.0.1:{rx_o.getsockname()[1]},cbor"])
     assert rc == 0
     freed = [fd.decode_d1(rx_f.recv(64)) for _ in range(5)]
     samples = [ot.decode_datagrams([rx_o.recv(4096)])[0] for _ in range(5)]
-    rx_f.close()
-    rx_o.close()
     assert {p.camera_id for p in freed} == {9}
     assert [s["timing"]["sequenceNumber"] for s in samples] == [0, 1, 2, 3, 4]
     assert "outputs sent: freed:127.0.0.1" in capsys.readouterr().err
