@@ -127,30 +127,34 @@ class FloorCalibration:
             T[2, 3] -= shift  # the centre at (0, 0, shift) of the calibration's camera
         return cam, T
 
-    def locate(self, box_xywh: Sequence[float], encoders: Any = None
+    def locate(self, box_xywh: Sequence[float], encoders: Any = None, lean_px: float = 0.0
                ) -> tuple[float, float, float | None]:
         """(X, Y) on the floor and the height (m) of a standing person whose box this is.
 
         With a recovered camera the person is a vertical segment whose foot projects to the
         box's bottom centre and whose top to the top centre (least squares); without one,
         the bottom centre through the homography and no height. ``encoders``: the view's
-        lens encoders at this frame (lens model only).
+        lens encoders at this frame (lens model only). ``lean_px``: the segment's lean in
+        the image where it is known (top u minus foot u, :meth:`standing_box_px`; the box
+        centre is then the segment's midpoint: foot at u - lean/2, top at u + lean/2).
         """
         x, y, w, h = (float(v) for v in box_xywh)
         u = x + 0.5 * w
+        uf_px, ut_px = u - 0.5 * lean_px, u + 0.5 * lean_px
         model = self.camera_at(encoders)
         if model is not None:
             from engine.camera import pixels_to_normalized
 
             cam, T = model
             # normalised, undistorted coordinates: P = [R | t]
-            (uf, vf), (uh, vh) = pixels_to_normalized(cam, np.array([[u, y + h], [u, y]]))
+            (uf, vf), (uh, vh) = pixels_to_normalized(
+                cam, np.array([[uf_px, y + h], [ut_px, y]]))
             return _segment_on_floor(T[:3, :], (uf, vf), (uh, vh))
         P = self.camera()
         if P is None:
-            fx, fy = self.floor_point(u, y + h)
+            fx, fy = self.floor_point(uf_px, y + h)
             return (fx, fy, None)
-        return _segment_on_floor(P, (u, y + h), (u, y))
+        return _segment_on_floor(P, (uf_px, y + h), (ut_px, y))
 
     def standing_box_px(self, u: F64, v: F64, height_m: float, encoders: Any = None,
                         h_start_px: F64 | None = None) -> tuple[F64, F64] | None:

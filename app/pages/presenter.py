@@ -1065,8 +1065,11 @@ class PresenterPage(Page):
         if ex.floor_xy_m is not None:
             h = "-" if ex.height_m is None else f"{ex.height_m:.2f} m"
             d = "-" if ex.d_m is None else f"{ex.d_m:.2f} m"
+            # d on its own line: on one with the floor position it wrapped between "d" and
+            # its value in the panel's width at 1280x800
+            lines.append(f"d {d} from the robot")
             lines.append(f"floor ({ex.floor_xy_m[0]:+.2f}, {ex.floor_xy_m[1]:+.2f}) m   "
-                         f"height {h}   d {d}")
+                         f"height {h}")
         lines.append(f"particles {ex.n_particles}   lost frames {ex.lost_frames}")
         lines.append(f"jitter lag {ex.lag_s:.2f} s   {fps:.0f} fps")
         return "\n".join(lines)

@@ -15,6 +15,14 @@ position (:class:`StandingPerson`): the box of a person as tall as the first fra
 taller than the person matches the colours as well) and moves the foot point with it: with
 the overhead view's about 1.4 cm of floor per pixel, a 10 px drift is 7 cm of d. With a zoom
 lens the height follows the encoders each frame.
+
+Lean (``floor_lean``): a vertical's image leans towards the nadir's image (below a camera
+looking down), by as much as the box is wide at the edges of a wide lens. The patches follow
+the lean at the estimate (:meth:`StandingPerson.patch_boxes`), the box is centred on the
+body's axis, and the floor point is located from the leaning segment
+(:meth:`FloorCalibration.locate` with ``lean_px``). Measured (``bench presenter`` two_view,
+rail walk from the image's left edge to its right): with the first frame's patch geometry
+the second view fell behind and was LOST 43 of 300 frames.
 """
 
 from __future__ import annotations
@@ -91,11 +99,14 @@ class StandingPerson:
     - :meth:`heights`: each hypothesis's box height at its box centre (the scale model that
       replaces eq. (1)'s random walk in h, ``PresenterParams.floor_scale``);
     - :meth:`patch_boxes`: the patches moved across the box with the person's lean at the
-      estimate (``floor_lean``): a patch at height fraction f of the box sits ``lean x
-      (1/2 - f)`` px right of where it would sit upright, plus its own offset in the first
-      box once the first box's lean is taken out. A model with the first frame's geometry
-      puts a person seen leaning left at the image's left edge (head left, feet right) on
-      one leaning right at its right edge: the torso patch lands beside the person.
+      estimate (``floor_lean``). A model with the first frame's geometry puts a person seen
+      leaning left at the image's left edge (head left, feet right) on one leaning right at
+      its right edge: the torso patch lands beside the person. Here a patch at height
+      fraction f of the box sits ``lean x (1/2 - f)`` px right of the body's axis, plus its
+      own offset in the first frame with that frame's lean taken out (zero mean over the
+      patches); the box is centred on the axis - its centre is then the axis' midpoint,
+      :meth:`FloorCalibration.locate`'s model, not the first box's centre, which a stride
+      or a swinging arm moves off it - and as wide as the upright body plus the lean.
     """
 
     def __init__(self, calib: FloorCalibration, height_m: float,
@@ -107,12 +118,20 @@ class StandingPerson:
         rel = np.asarray(rel_boxes, dtype=np.float64)
         self.rel_first = rel.copy()
         x, y, w, h = (float(v) for v in first_box_xywh)
-        lean0 = self._lean(x + 0.5 * w, y + 0.5 * h, h)
+        self.first_box_xywh = (x, y, w, h)
+        lean0 = self._lean(x + 0.5 * w, y + 0.5 * h, h) or 0.0
+        self._lean_last = lean0
         self._f = 0.5 * (rel[:, 1] + rel[:, 3])  # height fraction of each patch's centre
-        cx = 0.5 * (rel[:, 0] + rel[:, 2])
-        # each patch's own offset from the box centre with the first box's lean taken out
-        # (box-width fractions)
-        self._own = cx - 0.5 - (0.0 if lean0 is None else lean0 / w) * (0.5 - self._f)
+        upright = x + 0.5 * (rel[:, 0] + rel[:, 2]) * w - lean0 * (0.5 - self._f)  # px
+        axis = float(np.mean(upright))
+        self.axis_x0 = axis  # the axis' midpoint u in the first frame
+        # per patch, in units of the box height: offset from the axis, half width
+        self._own = (upright - axis) / h
+        self._half = 0.5 * (rel[:, 2] - rel[:, 0]) * w / h
+        # the upright body's width (units of h): the first box less its lean, at least
+        # wide enough for the patches upright
+        self._body = max((w - abs(lean0)) / h, 2.0 * float(np.max(np.abs(self._own)
+                                                                   + self._half)))
 
     @classmethod
     def from_first_box(cls, calib: FloorCalibration | None,
@@ -128,6 +147,11 @@ class StandingPerson:
             return None
         return cls(calib, height, box_xywh, rel_boxes, encoders)
 
+    def first_state(self) -> tuple[float, float, float]:
+        """The (x, y, h) state of the first box with x on the body's axis."""
+        _x, y, _w, h = self.first_box_xywh
+        return (self.axis_x0, y + 0.5 * h, h)
+
     def _lean(self, u: float, v: float, h: float) -> float | None:
         got = self.calib.standing_box_px(np.array([u]), np.array([v]), self.height_m,
                                          self.encoders, np.array([h]))
@@ -135,22 +159,32 @@ class StandingPerson:
             return None
         return float(got[1][0])
 
+    def lean_at(self, xyh: Any) -> float:
+        """The lean (px) of the person at state ``xyh`` (the last known where the floor is
+        not seen)."""
+        x, y, h = (float(v) for v in xyh)
+        lean = self._lean(x, y, h)
+        return self._lean_last if lean is None else lean
+
     def heights(self, particles_xyh: F64) -> F64 | None:
         """Box heights (px) of the (x, y, h) rows (NaN: keep the row's)."""
         got = self.calib.standing_box_px(particles_xyh[:, 0], particles_xyh[:, 1],
                                          self.height_m, self.encoders, particles_xyh[:, 2])
         return None if got is None else got[0]
 
-    def patch_boxes(self, xyh: F64, aspect: float) -> F64:
-        """Relative patch boxes (x0, y0, x1, y1 of the main box) at state ``xyh``: the first
-        frame's sizes and heights, moved across by the lean there (kept inside the box)."""
+    def patch_boxes(self, xyh: F64) -> tuple[F64, float]:
+        """Relative patch boxes (x0, y0, x1, y1 of the main box) and the main box's aspect
+        (width / height) at state ``xyh``: the first frame's patch sizes and heights, moved
+        across by the lean there (the last known lean where the floor is not seen)."""
         x, y, h = (float(v) for v in xyh)
         lean = self._lean(x, y, h)
-        rel = self.rel_first.copy()
         if lean is None:
-            return rel
-        half = 0.5 * (rel[:, 2] - rel[:, 0])
-        cx = 0.5 + self._own + lean / max(h * aspect, 1e-9) * (0.5 - self._f)
+            lean = self._lean_last
+        self._lean_last = lean
+        width = self._body * h + abs(lean)  # px
+        half = self._half * h / width
+        cx = 0.5 + (self._own * h + lean * (0.5 - self._f)) / width
         cx = np.clip(cx, half, 1.0 - half)
+        rel = self.rel_first.copy()
         rel[:, 0], rel[:, 2] = cx - half, cx + half
-        return rel
+        return rel, width / h

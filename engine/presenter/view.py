@@ -202,12 +202,15 @@ class ViewTracker:
         if params.seed != old.seed:
             self.rng = np.random.default_rng(params.seed)
 
-    def set_patch_boxes(self, rel_boxes: F64) -> None:
-        """Move the patches inside the main region (x0, y0, x1, y1 fractions; same sizes)
-        from the next step on, e.g. with a calibrated view's lean of a standing person
-        (engine.presenter.twoview.StandingPerson)."""
+    def set_patch_boxes(self, rel_boxes: F64, aspect: float | None = None) -> None:
+        """Move the patches inside the main region (x0, y0, x1, y1 fractions) and give the
+        main region this width / height (None: keep it) from the next step on, e.g. with a
+        calibrated view's lean of a standing person (engine.presenter.twoview.
+        StandingPerson)."""
         rel = np.ascontiguousarray(rel_boxes, dtype=np.float64)
-        self.model = dataclasses.replace(self.model, rel_boxes=rel)
+        mx, my, mw, mh = self.model.main_xywh
+        main = (mx, my, mw if aspect is None else float(aspect) * mh, mh)
+        self.model = dataclasses.replace(self.model, rel_boxes=rel, main_xywh=main)
         self._rel = rel
 
     def sigma_xyh(self, h: float) -> tuple[float, float, float]:

@@ -206,30 +206,40 @@ class PresenterTracker:
         else:
             omodel = model_from_box(use.color_bgr, use.box_xywh, p.auto_patches, p.n_bins,
                                     grey_world=p.grey_world)
-        self._overhead = ViewTracker(omodel, p, self._view.frame_rate_hz)
         self._over_first = (use.box_xywh, use.lens_encoders, omodel.rel_boxes)
         self._over_person = None
+        init = None
+        if p.floor_scale or p.floor_lean:
+            self._over_person = self._standing_person(self._floor_calibration(use))
+            if self._over_person is not None and p.floor_lean:
+                init = self._over_person.first_state()  # x on the body's axis
+        self._overhead = ViewTracker(omodel, p, self._view.frame_rate_hz, init_xyh=init)
+
+    def _standing_person(self, calib: Any) -> Any:
+        from engine.presenter.twoview import StandingPerson
+
+        if calib is None or self._over_first is None:
+            return None
+        box, encoders, rel = self._over_first
+        return StandingPerson.from_first_box(calib, box, rel, encoders)
 
     def _overhead_person(self, calib: Any, over: OverheadView) -> None:
         """The second view's standing-person model from the floor calibration (made from
-        the first box once per calibration, following the view's encoders): its scale
-        (``floor_scale``) and its patches' lean (``floor_lean``)."""
-        from engine.presenter.twoview import StandingPerson
-
+        the first box, again if the calibration changes; following the view's encoders):
+        its scale (``floor_scale``) and its patches' lean (``floor_lean``)."""
         p, view = self._params, self._overhead
-        if (p.floor_scale or p.floor_lean) and calib is not None \
-                and self._over_first is not None and (
-                    self._over_person is None or self._over_person.calib is not calib):
-            box, encoders, rel = self._over_first
-            self._over_person = StandingPerson.from_first_box(calib, box, rel, encoders)
+        if (p.floor_scale or p.floor_lean) and calib is not None and (
+                self._over_person is None or self._over_person.calib is not calib):
+            self._over_person = self._standing_person(calib)
         person = self._over_person if (p.floor_scale or p.floor_lean) else None
         if person is not None:
             person.encoders = over.lens_encoders
         view.scale_model = person.heights if person is not None and p.floor_scale else None
         if person is not None and p.floor_lean:
-            view.set_patch_boxes(person.patch_boxes(view.last_good_xyh, view.model.aspect))
+            view.set_patch_boxes(*person.patch_boxes(view.last_good_xyh))
         elif person is not None:
-            view.set_patch_boxes(person.rel_first)
+            _x, _y, w, h = person.first_box_xywh
+            view.set_patch_boxes(person.rel_first, w / h)
 
     def _floor_calibration(self, over: OverheadView) -> Any:
         """``floor_path``'s calibration (a floor.json or a studio project), else the
@@ -287,7 +297,12 @@ class PresenterTracker:
             obox = (ox - ow / 2.0, oy - oh / 2.0, ow, oh)
             if calib is not None and over_out.state == "TRACKING":
                 # a lens-model calibration: K and distortion at the view's encoders now
-                fx_m, fy_m, height = calib.locate(obox, over.lens_encoders)
+                lean = 0.0
+                person = self._over_person
+                if person is not None and p.floor_lean and person.calib is calib:
+                    # the box is centred on the body's axis: locate the leaning segment
+                    lean = person.lean_at(over_out.raw_xyh)
+                fx_m, fy_m, height = calib.locate(obox, over.lens_encoders, lean)
                 floor_xy = (fx_m, fy_m)
                 rx, ry = calib.robot_floor_xy_m
                 d_m = float(np.hypot(fx_m - rx, fy_m - ry))

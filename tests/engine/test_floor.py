@@ -85,6 +85,13 @@ def test_a_standing_persons_box_height_and_lean_follow_from_the_calibration() ->
         assert float(lean[0]) == pytest.approx(head[0] - foot[0], abs=0.05)
         box = (u - 20.0, head[1], 40.0, foot[1] - head[1])
         assert standing_height_m(calib, box) == pytest.approx(height, abs=1e-3)
+        # located with its lean: the segment itself (moved by the body's half depth)
+        C = T[:3, 3]
+        away = (np.array([X, Y]) - C[:2]) / np.linalg.norm(np.array([X, Y]) - C[:2])
+        fx, fy, hz = calib.locate(box, lean_px=float(lean[0]))
+        assert (fx, fy) == pytest.approx(tuple(np.array([X, Y]) + BODY_HALF_DEPTH_M * away),
+                                         abs=1e-3)
+        assert hz == pytest.approx(height, abs=1e-3)
     # off the image's middle column a vertical leans (towards the nadir's image below)
     leans = calib.standing_box_px(np.array([100.0, 540.0]), np.array([250.0, 250.0]), height)
     assert leans is not None
