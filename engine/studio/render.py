@@ -36,6 +36,8 @@ I64 = NDArray[np.int64]
 
 _EPS = 1e-6
 _INF = 1e30
+#: "every tile" for the kernel's tile mask
+_NO_MASK = np.zeros((1, 1), np.uint8)
 #: culling tiles (pixels): the kernel tests a primitive's screen rectangle once per tile
 _TILE_H = 8
 _TILE_W = 16
@@ -421,6 +423,8 @@ def _render_kernel(
     dyn: F64,
     to_maps: bool,
     room_done: bool,
+    tile_mask: NDArray[np.uint8],
+    pextra: NDArray[np.uint8],
     mat_xy: I64,
     out_bgr: NDArray[np.uint8],
     out_depth: NDArray[np.float32],
@@ -432,6 +436,7 @@ def _render_kernel(
     N = ptype.shape[0]
     ox, oy, oz = o[0], o[1], o[2]
     TH, TW = tile_bounds.shape[0], tile_bounds.shape[1]
+    masked = tile_mask.shape[0] == TH and tile_mask.shape[1] == TW
     # tiles interleaved over chunks: every chunk gets cheap (top) and busy (bottom) tiles
     n_chunks = min(TH * TW, 64)
     for chunk in prange(n_chunks):
@@ -440,6 +445,8 @@ def _render_kernel(
         for ti in range(chunk, TH * TW, n_chunks):
             ty = ti // TW
             tx = ti - ty * TW
+            if masked and tile_mask[ty, tx] == 0:
+                continue  # the static camera's cached frame stands here
             # the primitives whose screen rectangle meets the tile's, nearest first
             tb = tile_bounds[ty, tx]
             nc = 0
@@ -459,9 +466,12 @@ def _render_kernel(
                     x = xn[v, u]
                     y = yn[v, u]
                     if room_done:
+                        # (on a kept frame only the extra primitives change a pixel)
                         inside = False
                         for ci in range(nc):
                             k = cand[ci]
+                            if masked and pextra[k] == 0:
+                                continue
                             if (prect[k, 0] <= x <= prect[k, 1]
                                     and prect[k, 2] <= y <= prect[k, 3]):
                                 inside = True
@@ -688,6 +698,10 @@ class Renderer:
         self._dyn = (np.array([*_DYN_LIGHT, _DYN_AMBIENT, _DYN_DIFFUSE]) if dynamic_light is None
                      else np.ascontiguousarray(dynamic_light, dtype=np.float64))
         self._mat_i, self._mat_f = _material_tables(scene)
+        self._last_T: F64 | None = None
+        #: a still camera's frame of the set alone: (pose, colour, depth, labels, maps)
+        self._still: tuple[F64, NDArray[np.uint8], NDArray[np.float32], NDArray[np.uint8],
+                           NDArray[np.int16], NDArray[np.uint16]] | None = None
         if method == "remap":
             self._atlas = np.zeros(1, np.uint32)  # the kernel samples no texture itself
             self._atlas_2d, self._mat_xy = _atlas_2d(scene)
@@ -715,14 +729,73 @@ class Renderer:
         extra: Prims | None = None,
         out: RenderOutput | None = None,
     ) -> RenderOutput:
-        """Colour, depth and labels seen from ``T_world_cam`` with ``extra`` primitives."""
+        """Colour, depth and labels seen from ``T_world_cam`` with ``extra`` primitives.
+
+        A camera that stands still (``remap``: the same pose twice running) gets the set
+        rendered once without ``extra`` and kept: each frame then starts from that and
+        traces only the tiles the extra primitives' screen rectangles reach (the same images,
+        bit for bit)."""
+        h, w = self.xn.shape
+        if out is None:
+            out = RenderOutput(
+                np.empty((h, w, 3), np.uint8),
+                np.empty((h, w), np.float32),
+                np.empty((h, w), np.uint8),
+            )
+        T = np.asarray(T_world_cam, dtype=np.float64)
+        with _KERNEL_LOCK:
+            if self.method == "remap" and self._room_tex is not None:
+                still = self._last_T is not None and np.array_equal(T, self._last_T)
+                self._last_T = T.copy()
+                if still:
+                    if self._still is None or not np.array_equal(T, self._still[0]):
+                        # the set alone from here, kept with its maps
+                        self._trace(T, Prims.empty(), out, None)
+                        self._still = (T.copy(), out.color_bgr.copy(), out.depth_m.copy(),
+                                       out.labels.copy(), self._map_xy.copy(),
+                                       self._map_frac.copy())
+                    self._trace_on_still(T, extra, out)
+                    return out
+                self._still = None
+            self._trace(T, extra if extra is not None else Prims.empty(), out, None)
+        return out
+
+    def _trace_on_still(self, T: F64, extra: Prims | None, out: RenderOutput) -> None:
+        """The kept frame of the set, with the tiles that ``extra`` reaches traced again."""
+        assert self._still is not None
+        _, bgr, depth, labels, map_xy, map_frac = self._still
+        np.copyto(out.color_bgr, bgr)
+        np.copyto(out.depth_m, depth)
+        np.copyto(out.labels, labels)
+        np.copyto(self._map_xy, map_xy)
+        np.copyto(self._map_frac, map_frac)
+        if extra is None or len(extra.ptype) == 0:
+            return
+        rect = _screen_rects(extra.corners, np.ascontiguousarray(T[:3, :3]),
+                             np.ascontiguousarray(T[:3, 3]))
+        tb = self.tile_bounds[..., None, :]
+        reach = np.any((rect[:, 0] <= tb[..., 1]) & (rect[:, 1] >= tb[..., 0])
+                       & (rect[:, 2] <= tb[..., 3]) & (rect[:, 3] >= tb[..., 2]), axis=-1)
+        rows = np.flatnonzero(reach.any(axis=1))
+        if rows.size == 0:
+            return
+        h = out.depth_m.shape[0]
+        self._trace(T, extra, out, np.ascontiguousarray(reach, dtype=np.uint8),
+                    rows=(int(rows[0]) * _TILE_H, min(h, (int(rows[-1]) + 1) * _TILE_H)))
+
+    def _trace(self, T_world_cam: F64, extra: Prims, out: RenderOutput,
+               tile_mask: NDArray[np.uint8] | None,
+               rows: tuple[int, int] | None = None) -> None:
+        """The kernels (under the kernel lock): with ``tile_mask``, only the marked tiles on
+        top of what ``out`` and the maps hold, and colour sampled in ``rows`` only."""
         sc = self.scene
-        extra = extra if extra is not None else Prims.empty()
         ptype = np.concatenate([sc.prim_type, extra.ptype])
         geom = np.ascontiguousarray(np.concatenate([sc.prim_geom, extra.geom]))
         mat = np.ascontiguousarray(np.concatenate([sc.prim_mat, extra.mat]))
         label = np.concatenate([sc.prim_label, extra.label])
         corners = np.concatenate([sc.prim_corners, extra.corners])
+        is_extra = np.concatenate([np.zeros(len(sc.prim_type), np.uint8),
+                                   np.ones(len(extra.ptype), np.uint8)])
         R = np.ascontiguousarray(T_world_cam[:3, :3], dtype=np.float64)
         o = np.ascontiguousarray(T_world_cam[:3, 3], dtype=np.float64)
         rect = _screen_rects(corners, R, o)
@@ -732,65 +805,59 @@ class Renderer:
         radius = np.max(np.linalg.norm(corners - centre[:, None, :], axis=2), axis=1)
         dmin = np.maximum(np.linalg.norm(centre - o, axis=1) - radius, 0.0)
         order = np.argsort(dmin, kind="stable")
-        ptype, geom, mat, label, rect, dmin = (
-            np.ascontiguousarray(a[order]) for a in (ptype, geom, mat, label, rect, dmin)
+        ptype, geom, mat, label, rect, dmin, is_extra = (
+            np.ascontiguousarray(a[order])
+            for a in (ptype, geom, mat, label, rect, dmin, is_extra)
         )
-        h, w = self.xn.shape
-        if out is None:
-            out = RenderOutput(
-                np.empty((h, w, 3), np.uint8),
-                np.empty((h, w), np.float32),
-                np.empty((h, w), np.uint8),
-            )
         remap = self.method == "remap"
         room_pass = remap and self._room_tex is not None
         prev_threads = numba.get_num_threads()
         all_threads = numba_max_threads()
         want = all_threads if self.threads <= 0 else self.threads
-        with _KERNEL_LOCK:
-            # thread-local in numba: restored so that other kernels on this thread keep theirs
-            numba.set_num_threads(max(1, min(want, all_threads)))
-            try:
-                if room_pass:
-                    assert self._room_tex is not None
-                    _room_map_kernel(self.xn, self.yn, self.inv_norm, R, o, sc.room_geom,
-                                     self._room_tex, out.depth_m, out.labels,
-                                     self._map_xy.view(np.int32)[..., 0], self._map_frac)
-                _render_kernel(
-                    self.xn,
-                    self.yn,
-                    self.inv_norm,
-                    self.tile_bounds,
-                    R,
-                    o,
-                    sc.room_geom,
-                    sc.room_mat,
-                    ptype,
-                    geom,
-                    mat,
-                    label,
-                    rect,
-                    dmin,
-                    self._mat_i,
-                    self._mat_f,
-                    self._atlas,
-                    self._dyn,
-                    remap,
-                    room_pass,
-                    self._mat_xy,
-                    out.color_bgr,
-                    out.depth_m,
-                    out.labels,
-                    self._map_xy,
-                    self._map_frac,
-                )
-                if remap:
-                    self._sample(out.color_bgr)
-            finally:
-                numba.set_num_threads(prev_threads)
-        return out
+        # thread-local in numba: restored so that other kernels on this thread keep theirs
+        numba.set_num_threads(max(1, min(want, all_threads)))
+        try:
+            if room_pass and tile_mask is None:
+                assert self._room_tex is not None
+                _room_map_kernel(self.xn, self.yn, self.inv_norm, R, o, sc.room_geom,
+                                 self._room_tex, out.depth_m, out.labels,
+                                 self._map_xy.view(np.int32)[..., 0], self._map_frac)
+            _render_kernel(
+                self.xn,
+                self.yn,
+                self.inv_norm,
+                self.tile_bounds,
+                R,
+                o,
+                sc.room_geom,
+                sc.room_mat,
+                ptype,
+                geom,
+                mat,
+                label,
+                rect,
+                dmin,
+                self._mat_i,
+                self._mat_f,
+                self._atlas,
+                self._dyn,
+                remap,
+                room_pass,
+                _NO_MASK if tile_mask is None else tile_mask,
+                is_extra,
+                self._mat_xy,
+                out.color_bgr,
+                out.depth_m,
+                out.labels,
+                self._map_xy,
+                self._map_frac,
+            )
+            if remap:
+                self._sample(out.color_bgr, rows)
+        finally:
+            numba.set_num_threads(prev_threads)
 
-    def _sample(self, out_bgr: NDArray[np.uint8]) -> None:
+    def _sample(self, out_bgr: NDArray[np.uint8], rows: tuple[int, int] | None = None) -> None:
         """``cv2.remap`` of the atlas by this frame's maps into ``out_bgr`` (called under the
         kernel lock: the maps are this renderer's, reused by its next frame). Pixels of flat
         materials point outside the atlas and keep their shading (BORDER_TRANSPARENT).
@@ -801,8 +868,9 @@ class Renderer:
         """
         h, w = out_bgr.shape[:2]
         band = max(1, _REMAP_BAND_PX // w)
-        for r0 in range(0, h, band):
-            r1 = min(h, r0 + band)
+        lo, hi = (0, h) if rows is None else rows
+        for r0 in range(lo, hi, band):
+            r1 = min(hi, r0 + band)
             cv2.remap(self._atlas_2d, self._map_xy[r0:r1], self._map_frac[r0:r1],
                       cv2.INTER_LINEAR, dst=out_bgr[r0:r1], borderMode=cv2.BORDER_TRANSPARENT)
 

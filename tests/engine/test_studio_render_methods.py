@@ -134,3 +134,34 @@ def test_render_option_picks_the_path_and_rejects_others() -> None:
         open_source("synthetic:render=rasterize")
     with pytest.raises(ValueError, match="render method"):
         Renderer(build_scene(0), b.intrinsics, method="rasterize")
+
+
+@pytest.mark.parametrize("spec", ["frames=60,presenter=1,ball=1,path=static",
+                                  "frames=60,presenter=1,person2=cross,path=static,views=2"])
+def test_a_still_camera_keeps_the_set_and_traces_only_the_people(spec: str) -> None:
+    """The same pose twice running: the set is kept and only the tiles the people reach are
+    traced again; every frame equals a fresh renderer's, bit for bit (also the second,
+    overhead camera of views=2, which always stands still)."""
+    src = open_source(f"synthetic:{spec},width=320,height=240")
+    assert isinstance(src, SyntheticSource)
+    st = src.studio
+    r = st.renderer
+    for i in (0, 1, 2, 9, 30, 31):
+        T, prims = st.T_world_cam(i), _prims(st, i)
+        kept = r.render(T, prims)
+        fresh = Renderer(st.scene, st.intrinsics, dynamic_light=r._dyn).render(T, prims)
+        assert np.array_equal(kept.color_bgr, fresh.color_bgr), i
+        assert np.array_equal(kept.depth_m, fresh.depth_m), i
+        assert np.array_equal(kept.labels, fresh.labels), i
+    assert r._still is not None  # the set was kept
+    # the camera moves: the kept frame is dropped, the next frames are traced whole
+    T2 = st.T_world_cam(0).copy()
+    T2[0, 3] += 0.1
+    moved = r.render(T2, _prims(st, 5))
+    assert r._still is None
+    fresh = Renderer(st.scene, st.intrinsics, dynamic_light=r._dyn).render(T2, _prims(st, 5))
+    assert np.array_equal(moved.color_bgr, fresh.color_bgr)
+    if st.config.views == 2:
+        f1, f2 = src.frame(3), src.frame(4)
+        assert f1.payloads
+        assert f2.payloads
