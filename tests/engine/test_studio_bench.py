@@ -45,6 +45,7 @@ def test_bench_render_json_and_preview(tmp_path: Path, capsys: pytest.CaptureFix
     assert agree["depth_abs_max_m"] == 0.0
     assert agree["labels_frac_differ"] == 0.0
     assert agree["colour_abs_max"] <= 6
+    assert res["still"]["ms_median"] > 0  # the presenter seen by a camera standing still
     assert "open3d_depth_only" not in res  # the peer (open3d import ~8 s here) is skipped
     img = cv2.imread(str(preview))
     assert img.shape == (240, 320, 3)
