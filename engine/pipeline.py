@@ -250,7 +250,8 @@ class FrameTiming:
     thread, a camera); ``track_ms``/``track_cpu_ms``: the tracker's wall and CPU time, of
     which ``track_run_queue_ms`` runnable without a CPU (the OS) and ``track_gil_ms`` the
     rest (blocked: the interpreter lock held by another thread); ``sinks_ms``: handing the
-    record to the sinks.
+    record to the sinks; ``after_frame_ms``: the tracker's work after the record went out
+    (``after_frame``: a dense keyframe built; 0 when none).
     """
 
     seq: int
@@ -260,6 +261,7 @@ class FrameTiming:
     track_cpu_ms: float
     track_run_queue_ms: float
     sinks_ms: float
+    after_frame_ms: float = 0.0
 
     @property
     def track_gil_ms(self) -> float:
@@ -709,6 +711,8 @@ class Pipeline:
         name = self.info.tracker_name
         last_good: TrackResult | None = None
         skips: collections.deque[tuple[float, int]] = collections.deque()
+        after_frame = getattr(self.tracker, "after_frame", None)
+        after_frame = after_frame if callable(after_frame) else None
         while True:
             if should_stop() or (self.max_frames is not None and seq >= self.max_frames):
                 return
@@ -772,11 +776,7 @@ class Pipeline:
                         slot.sink.on_record(rec)
                     except Exception as exc:
                         self._fail_slot(slot, "on_record", exc)
-            self.frame_timings.append(FrameTiming(
-                seq=seq, pace_overshoot_ms=overshoot_ms, source_wait_ms=(t0 - w0) * 1000.0,
-                track_ms=rec.process_ms, track_cpu_ms=rec.cpu_ms,
-                track_run_queue_ms=(rq1 - rq0) * 1000.0,
-                sinks_ms=(time.perf_counter() - t1) * 1000.0))
+            sinks_ms = (time.perf_counter() - t1) * 1000.0
             self.mailbox.put(rec)
             self.trace.append(TraceSample.of(rec))
             with self._lock:
@@ -790,6 +790,18 @@ class Pipeline:
                     self._cap_done_ms.append(cap)
             self._note_state(rec)
             self._poll_health(done)
+            after_ms = 0.0
+            if after_frame is not None and frame.link_lost_reason is None:
+                # work the frame's result did not wait for (a new keyframe), now that the
+                # sinks and the window have the record; before the next frame is paced
+                a0 = time.perf_counter()
+                after_frame()
+                after_ms = (time.perf_counter() - a0) * 1000.0
+            self.frame_timings.append(FrameTiming(
+                seq=seq, pace_overshoot_ms=overshoot_ms, source_wait_ms=(t0 - w0) * 1000.0,
+                track_ms=rec.process_ms, track_cpu_ms=rec.cpu_ms,
+                track_run_queue_ms=(rq1 - rq0) * 1000.0, sinks_ms=sinks_ms,
+                after_frame_ms=after_ms))
             seq += 1
             yield rec
             if self.max_frames is not None and seq >= self.max_frames:

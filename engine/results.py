@@ -123,7 +123,11 @@ class Tracker(Protocol):
 
     A tracker whose commands need a device may also define ``sinks()`` returning the
     :class:`engine.pipeline.Sink` objects that carry them out (the presenter's robot-camera
-    control); every pipeline running the tracker then adds them.
+    control); every pipeline running the tracker then adds them. A tracker with work its
+    frame's result need not wait for may define ``after_frame()`` (the dense keyframe
+    tracker builds a new keyframe there); the pipeline calls it once the record reached the
+    sinks, and the tracker's next ``track`` does what is still pending first, so results
+    never depend on whether it ran.
     """
 
     name: str

@@ -496,6 +496,8 @@ def engine_timing(frames: list[Any]) -> dict[str, Any]:
         "track_run_queue_ms": _pct([f.track_run_queue_ms for f in frames]),
         "track_gil_ms": _pct([f.track_gil_ms for f in frames]),
         "sinks_ms": _pct([f.sinks_ms for f in frames]),
+        "after_frame_ms": _pct([f.after_frame_ms for f in frames]),
+        "after_frame_max_ms": _r(max(f.after_frame_ms for f in frames)),
     }
 
 

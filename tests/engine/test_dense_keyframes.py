@@ -277,3 +277,38 @@ def test_tracker_extends_a_given_store_only_when_asked() -> None:
     assert growing.store is not None
     assert len(growing.store) >= 3
     assert len(base) == 1
+
+
+def test_a_new_keyframe_is_built_after_its_frame_and_tracking_is_unchanged() -> None:
+    """The frame that decides on a keyframe returns before the keyframe is built (the
+    pipeline's after_frame, once the record reached the sinks; else the next track()): the
+    same poses and store either way, the store read in between includes it."""
+    from engine.dense.tracking import DenseKeyframeTracker
+    from engine.loop import run_tracking
+
+    scene = PlaneScene(small_intrinsics(), room_scale=0.45)
+    frames = [scene.frame(i, make_T(np.eye(3), [0.015 * i, 0.0, 0.0])) for i in range(16)]
+    params = DenseParams(n_points=1024, kf_add_dist_m=0.05)
+
+    direct = DenseKeyframeTracker(params)
+    direct_poses, added = [], []
+    for f in frames:
+        r = direct.track(f)
+        direct_poses.append(r.T_world_cam)
+        if r.details is not None and r.details.keyframe_added:
+            n_before = len(direct._store) if direct._store is not None else 0
+            added.append(f.index)
+            # counted in this frame's details, built when the store is read
+            assert r.details.keyframes == n_before + 1
+            assert direct.store is not None
+            assert len(direct.store) == n_before + 1
+            assert np.array_equal(direct.store.keyframes[-1].T_world_cam, r.T_world_cam)
+    assert len(added) >= 2
+
+    piped = DenseKeyframeTracker(params)
+    recs = list(run_tracking(_ListSource(frames), piped))
+    assert all(np.array_equal(r.result.T_world_cam, T) for r, T in zip(recs, direct_poses,
+                                                                        strict=True))
+    assert piped.store is not None
+    assert direct.store is not None
+    assert len(piped.store) == len(direct.store)

@@ -271,3 +271,24 @@ def test_sinks_are_registered_like_trackers() -> None:
 
     assert {"pose-outputs", "recorder", "robot-camera", "pan-tilt-head", "3d-view"} <= set(
         available_sinks())
+
+
+def test_after_frame_work_runs_after_the_sinks_have_the_record() -> None:
+    """A tracker's after_frame (work its result need not wait for) is called once per
+    tracked frame, after every sink got that frame's record; its time is kept."""
+    order: list[str] = []
+
+    class Late(Trk):
+        def after_frame(self) -> None:
+            order.append("after")
+
+    class Log(Collect):
+        def on_record(self, record: FrameRecord) -> None:
+            order.append(f"rec{record.seq}")
+
+    pipe = Pipeline(Src(4), Late(), [Log()])
+    recs = list(pipe.records())
+    assert len(recs) == 4
+    assert order == ["rec0", "after", "rec1", "after", "rec2", "after", "rec3", "after"]
+    assert [t.seq for t in pipe.frame_timings] == [0, 1, 2, 3]
+    assert all(t.after_frame_ms >= 0.0 for t in pipe.frame_timings)
