@@ -337,3 +337,15 @@ def test_page_fits_a_1280x800_window(window, title) -> None:  # type: ignore[no-
     """No horizontal scrolling at 1280 x 800: the page's minimum width fits beside the nav."""
     room = 1280 - window.nav.width() - 24  # frame and scroll-bar margin
     assert window.page(title).minimumSizeHint().width() <= room
+
+
+def test_a_run_that_ends_plots_its_last_frames(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
+    """The plots are redrawn at most every PLOT_INTERVAL_S; the frames after the last timed
+    redraw are drawn when the run ends (a short run plots completely)."""
+    live.configure(source="synthetic:frames=9,width=160,height=120", tracker=REAL_TRACKER,
+                   realtime=False)
+    run = window.ctx.run
+    with qtbot.waitSignal(run.finished, timeout=60_000):
+        live.start()
+    qtbot.waitUntil(lambda: live.status_light.text == "STOPPED", timeout=10_000)
+    assert live.pose_plots.curve_lengths()[0] == 9
