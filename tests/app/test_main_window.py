@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
@@ -348,4 +350,16 @@ def test_a_run_that_ends_plots_its_last_frames(qtbot, window, live) -> None:  # 
     with qtbot.waitSignal(run.finished, timeout=60_000):
         live.start()
     qtbot.waitUntil(lambda: live.status_light.text == "STOPPED", timeout=10_000)
+    # the display clock's tick after the end drains the last samples and draws them
+    qtbot.waitUntil(lambda: live.pose_plots.curve_lengths()[0] == 9, timeout=5_000)
+    # the same, step by step: samples that come right after a timed redraw wait for the next
+    # one, and the run's end draws them
+    samples, _, _ = run.trace_since(0)
+    assert len(samples) == 9
+    live.pose_plots.clear_data()
+    live.pose_plots.redraw()
+    live._plots_due = time.monotonic() + 60.0  # a timed redraw just happened
+    live.add_samples(samples, 0)
+    assert live.pose_plots.curve_lengths()[0] == 0
+    live.run_ended(run.status())
     assert live.pose_plots.curve_lengths()[0] == 9
