@@ -8,6 +8,7 @@ window down. Engine failures and logged warnings/errors appear in the status bar
 from __future__ import annotations
 
 import collections
+import math
 import time
 import traceback
 
@@ -33,6 +34,14 @@ from app.pages._base import DISPLAY_HZ
 from app.status import header_state
 from widgets.log_panel import LogDock, LogEntry, LogLevel
 from widgets.status_header import StatusHeader
+
+#: the display clock's period (ms)
+DISPLAY_PERIOD_MS = round(1000 / DISPLAY_HZ)
+#: a record ticks the display if the last tick is at least this many periods old (a 60 Hz
+#: source draws every other record at DISPLAY_HZ 30)
+RECORD_TICK_GAP = 0.75
+#: after a record's tick the timer waits this many periods (records keep the beat)
+RECORD_TIMER_HOLD = 1.5
 
 #: the header is refreshed every this many display ticks (10 Hz at 30 Hz)
 HEADER_EVERY = 3
@@ -117,10 +126,20 @@ class MainWindow(QMainWindow):
         self.project_actions = install_project_actions(self)  # File > New/Open/Save (issue 4)
         # one display clock for the whole window: the header and the visible page draw on it
         # (hidden pages cost nothing); the engine never waits for it
+        # A record arriving ticks it at once (at most DISPLAY_HZ, ``record_ready``): the
+        # window draws in the engine's idle time right after a frame, not at a random phase
+        # where its drawing holds the interpreter lock during the next frame's tracking; the
+        # timer ticks when no record comes (stopped, stalled source)
         self.display_timer = QTimer(self)
-        self.display_timer.setInterval(round(1000 / DISPLAY_HZ))
-        self.display_timer.timeout.connect(self.display_tick)
+        self.display_timer.setInterval(DISPLAY_PERIOD_MS)
+        self.display_timer.timeout.connect(self._on_display_timer)
         self._ticks = 0
+        self._last_tick = self._last_tick_end = 0.0
+        ctx.run.record_ready.connect(self._on_record_ready)
+        self._record_retry = QTimer(self)  # a record that came too soon, drawn a bit later
+        self._record_retry.setSingleShot(True)
+        self._record_retry.timeout.connect(
+            lambda: self._on_record_ready() if ctx.run.record_waiting() else None)
         #: GUI thread time per display tick (ms, last 600): what drawing costs
         self.tick_ms: collections.deque[float] = collections.deque(maxlen=600)
         self.display_timer.start()
@@ -164,13 +183,38 @@ class MainWindow(QMainWindow):
         return scroll.widget() if isinstance(scroll, QScrollArea) else None
 
     @Slot()
+    def _on_display_timer(self) -> None:
+        if self.display_timer.interval() != DISPLAY_PERIOD_MS:
+            self.display_timer.setInterval(DISPLAY_PERIOD_MS)
+        self.display_tick()
+
+    @Slot()
+    def _on_record_ready(self) -> None:
+        """A new record: tick now unless the last tick began under ``RECORD_TICK_GAP``
+        display periods ago, or ended less than its own duration ago (a page slower than the
+        display rate leaves the event loop half its time; the timer takes the record); the
+        timer then waits ``RECORD_TIMER_HOLD`` periods for the next record."""
+        now = time.perf_counter()
+        wait_s = max(self._last_tick + RECORD_TICK_GAP * DISPLAY_PERIOD_MS / 1e3 - now,
+                     self._last_tick_end + (self.tick_ms[-1] / 1e3 if self.tick_ms else 0.0)
+                     - now)
+        if wait_s > 0.0:  # too soon: this record is drawn at the earliest allowed moment
+            if not self._record_retry.isActive():
+                self._record_retry.start(max(1, math.ceil(wait_s * 1e3)))
+            return
+        self.display_tick()
+        self.display_timer.start(round(RECORD_TIMER_HOLD * DISPLAY_PERIOD_MS))
+
+    @Slot()
     def display_tick(self, force_header: bool = False) -> None:
         """The display clock: engine events to the log, the header, the shown page."""
         t0 = time.perf_counter()
+        self._last_tick = t0
         try:
             self._display_tick(force_header)
         finally:
-            self.tick_ms.append((time.perf_counter() - t0) * 1000.0)
+            self._last_tick_end = time.perf_counter()
+            self.tick_ms.append((self._last_tick_end - t0) * 1000.0)
 
     def _display_tick(self, force_header: bool) -> None:
         run = self.ctx.run

@@ -125,6 +125,7 @@ class RunThread(QThread):
     opened = Signal(int, object)  # run id, RunInfo
     open_failed = Signal(int, str)  # run id, one line
     run_done = Signal(int, object)  # run id, final RunStatus or None
+    record_ready = Signal(int)  # run id: a record arrived for the display (once per take)
 
     def __init__(
         self,
@@ -171,6 +172,8 @@ class RunThread(QThread):
                 source_spec=req.source_spec, commands=self._commands,
             )
             self.pipeline = pipe
+            run_id = self.run_id
+            pipe.mailbox.notify = lambda: self.record_ready.emit(run_id)
             self.opened.emit(self.run_id, pipe.info)
             status = pipe.run(self.isInterruptionRequested)
         except Exception as exc:  # opening failed: one line, the window goes on
@@ -220,6 +223,9 @@ class RunOwner(QObject):
     finished = Signal(object)  # RunStatus | None
     outputs_changed = Signal()
     params_changed = Signal(object)
+    #: a record is waiting for the display (queued from the engine thread, at most one per
+    #: record taken): the window draws right after the frame instead of at a random phase
+    record_ready = Signal()
 
     def __init__(
         self,
@@ -286,6 +292,11 @@ class RunOwner(QObject):
         """The newest record if not taken yet (the display clock; untaken ones are drops)."""
         p = self.pipeline
         return p.mailbox.take() if p is not None and self.is_running else None
+
+    def record_waiting(self) -> bool:
+        """A record of the running run is there that the display has not taken."""
+        p = self.pipeline
+        return p is not None and self.is_running and p.mailbox.waiting
 
     def trace_since(self, cursor: int) -> tuple[list[TraceSample], int, int]:
         """The run's history after ``cursor`` (also the last frames of a run that just
@@ -364,6 +375,7 @@ class RunOwner(QObject):
         thread.opened.connect(self._on_opened)
         thread.open_failed.connect(self._on_open_failed)
         thread.run_done.connect(self._on_done)
+        thread.record_ready.connect(self._on_record_ready)
         self._thread = thread
         self._current = thread
         _THREADS.append(thread)
@@ -537,6 +549,11 @@ class RunOwner(QObject):
         self.last_error = message
         self._say("error", f"engine stopped: {message}")
         self.failed.emit(message)
+
+    @Slot(int)
+    def _on_record_ready(self, run_id: int) -> None:
+        if run_id == self._active:
+            self.record_ready.emit()
 
     @Slot(int, object)
     def _on_done(self, run_id: int, status: object) -> None:

@@ -270,7 +270,13 @@ class FrameTiming:
 
 # ------------------------------------------------------------------------- mailbox
 class Mailbox(Generic[T]):
-    """Holds the latest item; ``put`` never waits, replacing an untaken item counts a drop."""
+    """Holds the latest item; ``put`` never waits, replacing an untaken item counts a drop.
+
+    ``notify`` (optional, set by the reader) is called by ``put`` when an item arrives in an
+    empty box: once per item the reader takes, never for the ones it drops, so a reader
+    that stalls gets one wake-up, not a queue of them. It must not block (the window's is a
+    queued Qt signal: the display draws right after a frame, in the engine's idle time).
+    """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -278,14 +284,19 @@ class Mailbox(Generic[T]):
         self._fresh = False
         self.put_count = 0
         self.dropped = 0
+        self.notify: Callable[[], None] | None = None
 
     def put(self, item: T) -> None:
         with self._lock:
-            if self._fresh:
+            was_fresh = self._fresh
+            if was_fresh:
                 self.dropped += 1
             self._item = item
             self._fresh = True
             self.put_count += 1
+        notify = self.notify
+        if notify is not None and not was_fresh:
+            notify()
 
     def take(self) -> T | None:
         """The latest item if it was not taken yet, else None."""
@@ -294,6 +305,12 @@ class Mailbox(Generic[T]):
                 return None
             self._fresh = False
             return self._item
+
+    @property
+    def waiting(self) -> bool:
+        """An item is there that was not taken yet."""
+        with self._lock:
+            return self._fresh
 
     def peek(self) -> T | None:
         """The latest item, taken or not."""
@@ -702,6 +719,10 @@ class Pipeline:
         with self._lock:
             self._phase = RunPhase.RUNNING
         frames = iter(self.source.frames())
+        # a real-time run tells a source that makes its frames ahead (the built-in studio)
+        # when it is done with one, so the next is made in its idle time
+        source_idle = getattr(frames, "consumer_idle", None) if period else None
+        source_idle = source_idle if callable(source_idle) else None
         seq = 0
         anchor = self._clock()
         k = 0  # frames since the pacing anchor
@@ -778,6 +799,8 @@ class Pipeline:
                         self._fail_slot(slot, "on_record", exc)
             sinks_ms = (time.perf_counter() - t1) * 1000.0
             self.mailbox.put(rec)
+            if source_idle is not None:
+                source_idle()
             self.trace.append(TraceSample.of(rec))
             with self._lock:
                 self._last = rec

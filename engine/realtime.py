@@ -153,6 +153,23 @@ def _why(exc: BaseException) -> str:
     return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
 
 
+def background_priority(fallback_nice: int = 10) -> str:
+    """Make the calling thread a background one: it runs only on a core no other thread
+    wants (Linux ``SCHED_IDLE``: a waking thread of the normal class preempts it at once,
+    where a niced thread still holds the core for up to a scheduler slice, ~3 ms); where
+    that is refused, ``fallback_nice`` nice levels kinder (:func:`lower_priority`). Always
+    permitted (a thread may lower itself), never raises; returns what is in force:
+    ``"SCHED_IDLE"``, ``"nice N"`` or ``"unchanged"``."""
+    if sys.platform == "linux" and hasattr(os, "SCHED_IDLE"):
+        try:
+            os.sched_setscheduler(threading.get_native_id(), os.SCHED_IDLE, os.sched_param(0))
+            return "SCHED_IDLE"
+        except (OSError, ValueError):
+            pass
+    now = lower_priority(fallback_nice)
+    return "unchanged" if now is None else f"nice {now}"
+
+
 def lower_priority(by: int) -> int | None:
     """Make the calling thread ``by`` nice levels kinder to the others (Linux: this
     thread only; always permitted); returns its nice value now, None where not possible."""

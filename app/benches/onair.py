@@ -4,7 +4,7 @@ Runs the operator window (offscreen) on the built-in studio with the real tracke
 time and the pose outputs on, blocks the GUI thread once in the middle for
 ``--stall-gui-ms`` (default 2000), and measures what the render engine receives:
 
-- ``output_rate_hz``, ``packets_expected`` (the output rate over the measured span),
+- ``output_rate_hz``, ``packets_expected`` (whole output periods in the measured span),
   ``packets_sent`` (datagrams that arrived at the loopback receivers, or that the sender
   sent when ``--freed/--opentrackio`` point elsewhere), ``max_send_gap_ms``,
   ``send_gap_p99_ms`` (between consecutive packets of one target, the worst target);
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import socket
 import statistics
 import struct
@@ -365,7 +366,9 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
     return {
         "output_rate_hz": round(rate, 3),
         "seconds": round(span, 3),
-        "packets_expected": round(span * rate) if rate == rate else None,
+        # whole output periods in the span: a span of 589.5 periods holds 589 or 590
+        # packets by phase (rounding it up read one packet missing where none was)
+        "packets_expected": math.floor(span * rate + 1e-6) if rate == rate else None,
         "packets_sent": min(sent) if sent else 0,
         "packets_sent_per_target": sent,
         "max_send_gap_ms": round(max_gap, 3),

@@ -19,6 +19,11 @@ class Source(abc.ABC):
     Subclasses validate what they can at construction (so that a bad folder fails before
     tracking starts) and raise :class:`engine.errors.SourceError` with one line naming the
     file and the problem for what can only be found while reading.
+
+    The iterator ``frames()`` returns may define ``consumer_idle()``: a real-time pipeline
+    calls it once each frame's record went out, so a source that makes frames ahead (the
+    built-in studio, :mod:`engine.sources.ahead`) makes the next one in the engine's idle
+    time rather than beside its tracking.
     """
 
     #: short human-readable description, e.g. "TUM folder rgbd_dataset_freiburg1_xyz"

@@ -368,11 +368,13 @@ def _person2(o: dict[str, Any], presenter: Any, fps: float, wide: bool) -> Any:
 
 
 #: the built-in studio stands in for a camera, whose frames cost the computer nothing: its
-#: render-ahead thread runs this many nice levels below the process, so that the air path's
-#: threads (engine, output sender, window) get a core first whenever they want one (on a
-#: 2-core machine the render, ~17 ms per frame, otherwise delays the tracker by a few ms
-#: every frame); on a free core it renders as fast as before
-RENDER_NICE = 10
+#: render-ahead thread is a background one (``SCHED_IDLE`` on Linux,
+#: :func:`engine.realtime.background_priority`), so the air path's threads (engine, output
+#: sender, window) get a core at once whenever they want one. At nice +10 (before) a 2-core
+#: run still left the engine waiting for a core 2.4 ms of its 6.6 ms median frame (the
+#: render, ~10 ms per frame, keeps the core to the end of its slice); rendered in the idle
+#: time it is as fast as before
+RENDER_BACKGROUND = True
 
 
 class SyntheticSource(Source):
@@ -427,7 +429,7 @@ class SyntheticSource(Source):
         from engine.sources.ahead import read_ahead
 
         return read_ahead(self.studio.frame, len(self), depth=self.ahead,
-                          name="studio-render-ahead", nice=RENDER_NICE)
+                          name="studio-render-ahead", background=RENDER_BACKGROUND)
 
 
 SOURCES = (

@@ -265,6 +265,35 @@ def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch,
     assert live.pose_plots.est.total > shown
 
 
+def test_records_tick_the_display_without_the_timer(qtbot, monkeypatch, ctx) -> None:  # type: ignore[no-untyped-def]
+    """The display draws when a record arrives (the engine's idle time), not only on its
+    timer; the timer is the fallback when no record comes."""
+    import engine.sources as sources
+    from app.main_window import MainWindow
+    from tests.app.fakes import FAKE_SPEC, open_fake
+
+    real_open = sources.open_source
+    monkeypatch.setattr(
+        sources,
+        "open_source",
+        lambda spec: open_fake(spec) if spec.startswith("fake") else real_open(spec),
+    )
+    real = dict(trackers.available_trackers())
+    monkeypatch.setattr(trackers, "available_trackers", lambda: {**real, "fake": FAKE_SPEC})
+    window = MainWindow(ctx)
+    qtbot.addWidget(window)
+    window.show()
+    window.display_timer.timeout.disconnect()  # only records can tick it now
+    live = window.page("Live")
+    live.configure(source="fake:100000", tracker="fake", realtime=True)
+    with qtbot.waitSignal(ctx.run.started, timeout=10_000):
+        live.start()
+    t0 = window._ticks
+    qtbot.waitUntil(lambda: window._ticks >= t0 + 10, timeout=10_000)
+    qtbot.waitUntil(lambda: live._frames_shown >= 5, timeout=10_000)
+    live.stop()
+
+
 def test_closing_the_window_stops_the_engine(qtbot, window, live) -> None:  # type: ignore[no-untyped-def]
     _configure(live)
     run = window.ctx.run

@@ -113,6 +113,25 @@ def test_the_engine_never_waits_for_a_stalled_gui(qtbot, owner: RunOwner) -> Non
     assert st.display_dropped >= 10  # coalesced: only the latest record is kept, drops counted
 
 
+def test_a_stalled_gui_gets_one_record_wake_up_not_a_queue(qtbot, owner: RunOwner) -> None:
+    with qtbot.waitSignal(owner.started, timeout=10_000):
+        owner.start("fake:100000", "fake", realtime=True)  # 30 fps
+    qtbot.waitUntil(lambda: owner.frames_received > 2, timeout=10_000)
+    woken: list[int] = []
+    owner.record_ready.connect(lambda: woken.append(owner.frames_received))
+    qtbot.wait(100)
+    owner.take_latest()
+    woken.clear()
+    n0 = owner.frames_received
+    time.sleep(0.5)  # the GUI thread is stuck: ~15 records, nobody takes them
+    qtbot.wait(20)  # the queued wake-ups arrive
+    assert owner.frames_received - n0 >= 8
+    assert len(woken) == 1
+    owner.take_latest()
+    qtbot.waitUntil(lambda: len(woken) >= 2, timeout=2_000)  # the next record wakes it again
+    owner.stop()
+
+
 def test_outputs_follow_every_run_and_bad_host_is_refused(qtbot, owner: RunOwner) -> None:
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind(("127.0.0.1", 0))

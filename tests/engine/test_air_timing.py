@@ -226,22 +226,42 @@ def test_a_nice_value_is_asked_for_and_never_lowers_a_thread(
     assert not calls
 
 
-def test_the_render_ahead_worker_runs_below_the_consumer() -> None:
+def test_the_render_ahead_worker_runs_in_the_background() -> None:
     if sys.platform != "linux":
-        pytest.skip("per-thread priorities are Linux's")
-    mine = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+        pytest.skip("per-thread scheduling is Linux's")
+    mine = os.sched_getscheduler(threading.get_native_id())
     seen: list[int] = []
 
     def make(i: int) -> Frame:
-        seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
+        seen.append(os.sched_getscheduler(threading.get_native_id()))
         return Frame(i, i / 30.0, None, Intrinsics(fx=50, fy=50, cx=16, cy=12, width=32,
                                                     height=24))
 
-    frames = list(read_ahead(make, 3, nice=4))
+    frames = list(read_ahead(make, 3, background=True))
     assert len(frames) == 3
     assert seen
-    assert all(n == min(19, mine + 4) for n in seen)
-    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == mine
+    assert all(p == os.SCHED_IDLE for p in seen)
+    assert os.sched_getscheduler(threading.get_native_id()) == mine  # the consumer's own
+
+
+def test_background_priority_falls_back_to_nice_where_idle_is_refused(monkeypatch) -> None:
+    if sys.platform != "linux":
+        pytest.skip("per-thread priorities are Linux's")
+    out: list[str] = []
+
+    def refuse(*_a: object) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    def worker() -> None:
+        mine = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+        monkeypatch.setattr(os, "sched_setscheduler", refuse)
+        out.append(realtime.background_priority(4))
+        out.append(f"nice {min(19, mine + 4)}")
+
+    t = threading.Thread(target=worker)
+    t.start()
+    t.join()
+    assert out[0] == out[1]
 
 
 def test_run_queue_time_is_counted_per_thread() -> None:

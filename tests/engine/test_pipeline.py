@@ -116,6 +116,19 @@ def test_mailbox_keeps_latest_and_counts_drops() -> None:
     assert (box.put_count, box.dropped) == (3, 1)
 
 
+def test_mailbox_notifies_once_per_item_taken() -> None:
+    box: Mailbox[int] = Mailbox()
+    calls: list[int] = []
+    box.notify = lambda: calls.append(box.put_count)
+    box.put(1)
+    box.put(2)  # the reader has not taken 1: no second wake-up (a stalled reader gets one)
+    box.put(3)
+    assert calls == [1]
+    assert box.take() == 3
+    box.put(4)
+    assert calls == [1, 4]
+
+
 def test_trace_cursor_and_missed() -> None:
     tr = Trace(3)
     rec = next(run_tracking(Src(1), Trk()))

@@ -72,6 +72,38 @@ def test_closing_early_stops_the_worker_and_errors_reach_the_consumer() -> None:
     assert not _workers()
 
 
+def test_a_consumer_that_says_it_is_idle_gets_the_next_frame_made_only_then() -> None:
+    made: list[int] = []
+
+    def make(i: int) -> Frame:
+        made.append(i)
+        return _frame(i)
+
+    def settle() -> None:
+        time.sleep(0.15)
+
+    it = read_ahead(make, 10, depth=1, name="test-ahead")
+    assert next(it).index == 0
+    it.consumer_idle()  # gated from here on (frames 1 and 2 were made free-running)
+    settle()
+    assert next(it).index == 1
+    it.consumer_idle()
+    assert next(it).index == 2
+    settle()
+    n = len(made)  # frame 3 waits for the consumer to finish frame 2
+    assert made[-1] == 2
+    it.consumer_idle()
+    settle()
+    assert made[-1] == 3
+    assert len(made) == n + 1
+    assert next(it).index == 3
+    settle()
+    assert made[-1] == 3  # still busy with frame 3: nothing made beside it
+    assert next(it).index == 4  # asked before it was made: made at once
+    assert [f.index for f in it] == [5, 6, 7, 8, 9]  # no idle calls: made when asked
+    assert not _workers()
+
+
 def test_depth_zero_makes_frames_on_the_callers_thread() -> None:
     names: list[str] = []
 
