@@ -65,6 +65,17 @@ DISTRACTOR = {
     "beside_same_look": _BASE + "seed=5,person2=beside,person2_look=0,presenter_mode=still",
     "behind_same_look": _BASE + "seed=6,person2=behind,person2_look=0",
 }
+#: the same cases with other seeds, looks and image sizes: what the depth agreement's std
+#: (``depth_sigma_m``) was chosen on; the bench reports ``DISTRACTOR``
+DISTRACTOR_CHECK = {
+    "cross_same_look": _BASE + "seed=41,person2=cross,person2_look=2,presenter_look=2,"
+                               "width=320,height=240",
+    "beside_same_look": _BASE + "seed=42,person2=beside,person2_look=3,presenter_look=3,"
+                                "presenter_mode=still",
+    "behind_same_look": _BASE + "seed=43,person2=behind,person2_look=1,presenter_look=1",
+    "behind_same_look_small": _BASE + "seed=44,person2=behind,person2_look=4,presenter_look=4,"
+                                      "width=320,height=240",
+}
 N_FRAMES = {"desk": 240, "walk": 240, "distractor": 300}
 
 #: held-out loss scenarios: seeds, presenters, lighting, places and image sizes that neither
@@ -245,7 +256,8 @@ def distractor(run: Runner, case: str) -> dict[str, Any]:
     from engine.evaluation.boxes import box_scores
     from engine.trackers.base import TrackState
 
-    spec = DISTRACTOR[case].format(n=N_FRAMES["distractor"])
+    spec = {**DISTRACTOR, **{f"check_{k}": v for k, v in DISTRACTOR_CHECK.items()}}[
+        case].format(n=N_FRAMES["distractor"])
     frames = frames_of(spec)
     results = run(frames)
     stolen = 0

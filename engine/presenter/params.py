@@ -24,7 +24,7 @@ PAPER_PRESET = Preset(
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100,
     trajectory_share=0.0, lambda_col=0.1, reacquire_frames=1, loss_bg_weighting=1.0,
-    floor_scale=False, floor_lean=False)
+    floor_scale=False, floor_lean=False, depth_sigma_m=0.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,6 +46,12 @@ class PresenterParams(Params):
                                  help="drift of the prediction: this fraction of the estimate's "
                                  "smoothed velocity is added to eq. (1)'s random walk (0 = the "
                                  "paper's pure random walk)")
+    depth_sigma_m: float = param(0.15, lo=0.0, hi=5.0, step=0.05,
+                                 help="RGB-D sources: each hypothesis' body depth must agree "
+                                 "with the presenter's tracked depth within this std (m; "
+                                 "engine.presenter.depth): a look-alike behind or in front "
+                                 "of the presenter does not take the track; 0 = off (the "
+                                 "paper: colour and motion only)")
     trajectory_share: float = param(0.0, lo=0.0, hi=0.5, step=0.05,
                                     help="identity by trajectory (engine.presenter."
                                     "trajectory): while the estimate moves faster than a "

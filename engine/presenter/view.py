@@ -61,6 +61,12 @@ from engine.particles import systematic_resample
 from engine.presenter import filter as pf
 from engine.presenter import frame_colour as fc
 from engine.presenter import step_kernels as sk
+from engine.presenter.depth import (
+    RESEED_FRAMES,
+    DepthReference,
+    depth_likelihood,
+    torso_depths,
+)
 from engine.presenter.extent import measure_extent
 from engine.presenter.jitter import JitterFilter
 from engine.presenter.likelihood import (
@@ -151,6 +157,7 @@ class ViewTracker:
         self._n_frames = 0
         self._vel_xy = np.zeros(2)
         self.trajectory = Trajectory()
+        self.depth_ref = DepthReference()  # the presenter's depth (RGB-D sources)
         self._box_dx_w: tuple[float, float] | None = None  # smoothed centre offset, width
         self._prev_mean: F64 | None = None
         self._p_boot: list[float] = []
@@ -419,8 +426,14 @@ class ViewTracker:
         self._bin_w_pow = {}
         self._set_reference()
 
-    def step(self, bgr: NDArray[np.uint8]) -> ViewOutput:
+    def step(self, bgr: NDArray[np.uint8],
+             depth_m: NDArray[np.float32] | None = None) -> ViewOutput:
+        """One frame; ``depth_m`` (metres, 0 = invalid, registered to ``bgr``) adds the
+        depth agreement of :mod:`engine.presenter.depth` while tracking."""
         p = self.params
+        if depth_m is not None and (p.depth_sigma_m <= 0.0
+                                    or depth_m.shape[:2] != bgr.shape[:2]):
+            depth_m = None
         t_start = time.perf_counter()
         H, W = bgr.shape[:2]
         timings: dict[str, float] = {}
@@ -484,6 +497,12 @@ class ViewTracker:
         w = colour_likelihood(b2, p.lambda_col)  # eq. (3) (times the ring term)
         if e is not None:
             w = w * motion_likelihood(e, p.lambda_mot)  # eq. (4)-(5)
+        if depth_m is not None and not first and (self.state == TRACKING
+                                                  or self.lost_frames < RESEED_FRAMES):
+            # while tracking, and for a second after a loss (the presenter covered by
+            # someone crossing in front is found again at its own depth, not the other's)
+            w = w * depth_likelihood(torso_depths(depth_m, self.particles, self.model.aspect),
+                                     self.depth_ref.z_m, p.depth_sigma_m)
         self.weights = pf.normalise(w)  # eq. (5)
         mean = pf.weighted_mean(self.particles, self.weights)  # eq. (6)
         if p.mode_seek and self.state == TRACKING:
@@ -543,6 +562,10 @@ class ViewTracker:
                 self._above = 0
             elif self._below == 0:
                 self.last_good_xyh = mean.copy()
+                if depth_m is not None:
+                    self.depth_ref.update(float(torso_depths(depth_m, mean[None, :],
+                                                             self.model.aspect)[0]),
+                                          p.depth_sigma_m)
                 if not booting and p_col >= p.pref_adapt_ratio * self.p_ref:  # slow Pref adapt
                     self.p_ref += p.pref_adapt_rate * (p_col - self.p_ref)
                 if not booting and self._mu is not None and self._last_fixed is not None \
@@ -557,6 +580,8 @@ class ViewTracker:
                     self._update_model(ctx, mean)
         else:
             self.lost_frames += 1
+            if self.lost_frames >= RESEED_FRAMES:
+                self.depth_ref.reset()  # gone for a while: may come back at any depth
             self._above = self._above + 1 if not bad else 0
             if self._above >= p.reacquire_frames:
                 self.state = TRACKING

@@ -279,7 +279,7 @@ class PresenterTracker:
             # the jitter filter's frame rate from the timestamps (unless the operator set one)
             self._view.frame_rate_hz = 1.0 / (frame.timestamp_s - self._t_prev)
         self._t_prev = frame.timestamp_s
-        out = self._view.step(bgr)
+        out = self._view.step(bgr, frame.depth_m)
         d_m = None
         over_out = None
         floor_xy = None
