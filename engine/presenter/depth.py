@@ -12,7 +12,7 @@ body's middle (:data:`TORSO_GRID`: the box's central fifth in width, from a quar
 height above the centre down to the centre: chest and belly of a full-body box, the chest
 of an upper-body one), and its weight is multiplied by::
 
-    L_depth = exp(-0.5 ((z - z_ref) / sigma_z)^2)
+    L_depth = f + (1 - f) exp(-0.5 ((z - z_ref) / sigma_z)^2),   f = FLOOR = 0.1
 
 with ``z_ref`` the depth at the estimate of the last confident frame (:class:`DepthReference`,
 an exponential average). A hypothesis without enough valid depth there (holes, beyond the
@@ -42,6 +42,9 @@ MIN_VALID = 3
 GATE = 2.5
 #: ... unless it stays so this many frames in a row (1 s at 30 Hz): the reference restarts
 RESEED_FRAMES = 30
+#: the likelihood's floor: depth alone never vetoes a hypothesis whose colour is far better
+#: (a lock taken on the wrong depth, e.g. re-acquired on the set, is not entrenched by it)
+FLOOR = 0.1
 
 
 def torso_depths(depth_m: NDArray[np.float32], xyh: F64, aspect: float) -> F64:
@@ -68,13 +71,13 @@ def torso_depths(depth_m: NDArray[np.float32], xyh: F64, aspect: float) -> F64:
 
 
 def depth_likelihood(z: F64, z_ref: float, sigma_m: float) -> F64:
-    """``exp(-0.5 ((z - z_ref) / sigma)^2)`` per hypothesis; 1 where ``z`` is NaN or the
-    reference unknown or ``sigma`` <= 0 (off)."""
+    """``FLOOR + (1 - FLOOR) exp(-0.5 ((z - z_ref) / sigma)^2)`` per hypothesis; 1 where
+    ``z`` is NaN or the reference unknown or ``sigma`` <= 0 (off)."""
     z = np.asarray(z, dtype=np.float64)
     if not (sigma_m > 0.0 and math.isfinite(z_ref)):
         return np.ones(len(z))
     r = (z - z_ref) / sigma_m
-    out = np.exp(-0.5 * r * r)
+    out = FLOOR + (1.0 - FLOOR) * np.exp(-0.5 * r * r)
     out[~np.isfinite(z)] = 1.0
     return out
 

@@ -11,6 +11,7 @@ import pytest
 from engine.bench import presenter_scenarios as sc
 from engine.frames import Frame
 from engine.presenter.depth import (
+    FLOOR,
     GATE,
     RESEED_FRAMES,
     DepthReference,
@@ -44,7 +45,7 @@ def test_the_likelihood_is_neutral_without_depth_or_reference() -> None:
     z = np.array([2.0, 2.3, np.nan])
     w = depth_likelihood(z, 2.0, 0.15)
     assert w[0] == pytest.approx(1.0)
-    assert w[1] == pytest.approx(math.exp(-2.0))
+    assert w[1] == pytest.approx(FLOOR + (1.0 - FLOOR) * math.exp(-2.0))
     assert w[2] == 1.0
     assert (depth_likelihood(z, math.nan, 0.15) == 1.0).all()
     assert (depth_likelihood(z, 2.0, 0.0) == 1.0).all()
