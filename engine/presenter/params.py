@@ -15,16 +15,17 @@ LOSS_REFERENCES = ("first", "anchored")
 #: the paper gives no covariances: the default x/y ones and a scale std of 1.5 % of h per
 #: frame), the fixed reference model, eq. (3)-(5) without the ring term, the weighted mean
 #: (eq. 6) as the output box, and the likelihood loss test: Pmin = 10 % of Pref, Pref the first
-#: frame's maximum likelihood, adapted while P >= 60 % of it. (The histograms keep the N
-#: brightness bins of the paper's ref. [6] for grey pixels.)
+#: frame's maximum likelihood, adapted while P >= 60 % of it, LOST at the first frame below
+#: Pmin ("declare a loss whenever P(z_col|s_t) decreases below" it). (The histograms keep
+#: the N brightness bins of the paper's ref. [6] for grey pixels.)
 PAPER_PRESET = Preset(
     "the VR-TV paper's filter as published: random walk in x, y, h, fixed model, "
-    "Pmin = 10 % of Pref",
+    "Pmin = 10 % of Pref, LOST at the first frame below it",
     velocity_gain=0.0, sigma_h_frac=0.015, ring_weight=0.0, mode_seek=False, model_update_rate=0.0,
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100,
     trajectory_share=0.0, lambda_col=0.1, reacquire_frames=1, loss_bg_weighting=1.0,
-    floor_scale=False, floor_lean=False, depth_sigma_m=0.0)
+    floor_scale=False, floor_lean=False, depth_sigma_m=0.0, loss_frames=1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,7 +43,7 @@ class PresenterParams(Params):
     sigma_min_px: float = param(3.0, lo=0.0, hi=100.0, step=0.5,
                                 help="lower bound of the x/y prediction noise std (px): small "
                                 "targets still move whole pixels")
-    velocity_gain: float = param(0.5, lo=0.0, hi=1.0, step=0.05,
+    velocity_gain: float = param(0.75, lo=0.0, hi=1.0, step=0.05,
                                  help="drift of the prediction: this fraction of the estimate's "
                                  "smoothed velocity is added to eq. (1)'s random walk (0 = the "
                                  "paper's pure random walk)")
@@ -52,7 +53,7 @@ class PresenterParams(Params):
                                  "engine.presenter.depth): a look-alike behind or in front "
                                  "of the presenter does not take the track; 0 = off (the "
                                  "paper: colour and motion only)")
-    trajectory_share: float = param(0.0, lo=0.0, hi=0.5, step=0.05,
+    trajectory_share: float = param(0.2, lo=0.0, hi=0.5, step=0.05,
                                     help="identity by trajectory (engine.presenter."
                                     "trajectory): while the estimate moves faster than a "
                                     "person can change speed, this share of the particles is "
@@ -76,11 +77,11 @@ class PresenterParams(Params):
                                 help="prediction noise std of the scale h per frame, fraction of "
                                 "h (eq. 1; with the ring term, which keeps h from shrinking "
                                 "into the person); 0 keeps the size fixed")
-    mode_seek: bool = param(False, help="output the mean of the particles' dominant mode "
+    mode_seek: bool = param(True, help="output the mean of the particles' dominant mode "
                             "(mean-shift from eq. 6's mean, kernel half a box wide) instead of "
                             "eq. (6)'s mean of all: with a second person in view the mean lies "
                             "between the two")
-    ring_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
+    ring_weight: float = param(0.5, lo=0.0, hi=10.0, step=0.1,
                                help="scale term beyond eq. (3): the colour likelihood is also "
                                "multiplied by exp(-this x BC_ring / lambda_col), BC_ring = the "
                                "Bhattacharyya coefficient of a ring around the box with the "
@@ -89,7 +90,7 @@ class PresenterParams(Params):
     ring_margin_frac: float = param(0.25, lo=0.05, hi=1.0, step=0.05,
                                     help="width of that ring on each side, fraction of the "
                                     "box's width and height")
-    lambda_col: float = param(0.15, lo=0.001, hi=10.0, step=0.01,
+    lambda_col: float = param(0.1, lo=0.001, hi=10.0, step=0.01,
                               help="colour likelihood covariance lambda_col (eq. 3)")
     lambda_mot: float = param(2.0, lo=0.01, hi=100.0, step=0.1,
                               help="motion likelihood covariance lambda_mot (eq. 4)")
@@ -106,7 +107,7 @@ class PresenterParams(Params):
                            "target-like tenth of this frame's background (z = 0 target, 1 "
                            "background); LOST while z > loss_contrast. 'likelihood' = the "
                            "paper's test, P(z_col|s) < loss_percent % of Pref")
-    loss_contrast: float = param(0.7, lo=0.05, hi=2.0, step=0.05,
+    loss_contrast: float = param(0.5, lo=0.05, hi=2.0, step=0.05,
                                  help="contrast loss test: LOST while z > this (0.5 = half-way "
                                  "from the target's colour match to the background's)")
     loss_bg_quantile: float = param(0.1, lo=0.01, hi=0.9, step=0.05,
@@ -118,12 +119,12 @@ class PresenterParams(Params):
                                 help="contrast loss test: the colours the patches are compared "
                                 "with: 'first' = the first frame's patches, 'anchored' = the "
                                 "tracking model (model_anchor x first + the rest adapted)")
-    loss_bg_weighting: float = param(0.5, lo=0.0, hi=2.0, step=0.25,
+    loss_bg_weighting: float = param(1.0, lo=0.0, hi=2.0, step=0.25,
                                      help="contrast loss test: its reference's bins scaled by "
                                      "min(1, o*/o_b)^this, o = colours of a ring around the "
                                      "first box (as bg_weighting): what the set around the "
                                      "presenter shows does not count as the presenter; 0 = off")
-    loss_motion: float = param(0.1, lo=0.0, hi=1.0, step=0.05,
+    loss_motion: float = param(0.2, lo=0.0, hi=1.0, step=0.05,
                                help="contrast loss test, motion cue (static camera): while "
                                "TRACKING, no LOST when the fraction of pixels under the "
                                "patches that moved in the last frames exceeds the most "
@@ -143,7 +144,7 @@ class PresenterParams(Params):
                                   help="Pref starts as the median P(z_col|s) of this many frames "
                                   "after the first (the first frame matches its own model "
                                   "exactly, an optimistic reference); no loss test meanwhile")
-    loss_frames: int = param(2, lo=1, hi=5, step=1,
+    loss_frames: int = param(3, lo=1, hi=5, step=1,
                              help="consecutive frames below Pmin before LOST is declared")
     model_update_rate: float = param(0.05, lo=0.0, hi=1.0, step=0.01,
                                      help="slow model update: per frame, the adapted patch "
