@@ -223,9 +223,8 @@ def test_broken_page_is_replaced_by_an_error_page(qtbot, ctx) -> None:  # type: 
     assert "ValueError: boom" in w.status_text()
 
 
-def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch, ctx) -> None:  # type: ignore[no-untyped-def]
-    """A tracker far faster than the display: records arrive, the timer draws a subset, and
-    the GUI event loop keeps serving timers."""
+def _window_with_fakes(qtbot, monkeypatch, ctx):  # type: ignore[no-untyped-def]
+    """A shown main window whose source and tracker menus also offer the fast fakes."""
     import engine.sources as sources
     from app.main_window import MainWindow
     from tests.app.fakes import FAKE_SPEC, open_fake
@@ -241,6 +240,13 @@ def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch,
     window = MainWindow(ctx)
     qtbot.addWidget(window)
     window.show()
+    return window
+
+
+def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch, ctx) -> None:  # type: ignore[no-untyped-def]
+    """A tracker far faster than the display: records arrive, the timer draws a subset, and
+    the GUI event loop keeps serving timers."""
+    window = _window_with_fakes(qtbot, monkeypatch, ctx)
     live = window.page("Live")
     live.configure(source="fake:100000000", tracker="fake", realtime=False)
     run = ctx.run
@@ -268,21 +274,7 @@ def test_display_is_decoupled_and_window_responsive_flat_out(qtbot, monkeypatch,
 def test_records_tick_the_display_without_the_timer(qtbot, monkeypatch, ctx) -> None:  # type: ignore[no-untyped-def]
     """The display draws when a record arrives (the engine's idle time), not only on its
     timer; the timer is the fallback when no record comes."""
-    import engine.sources as sources
-    from app.main_window import MainWindow
-    from tests.app.fakes import FAKE_SPEC, open_fake
-
-    real_open = sources.open_source
-    monkeypatch.setattr(
-        sources,
-        "open_source",
-        lambda spec: open_fake(spec) if spec.startswith("fake") else real_open(spec),
-    )
-    real = dict(trackers.available_trackers())
-    monkeypatch.setattr(trackers, "available_trackers", lambda: {**real, "fake": FAKE_SPEC})
-    window = MainWindow(ctx)
-    qtbot.addWidget(window)
-    window.show()
+    window = _window_with_fakes(qtbot, monkeypatch, ctx)
     window.display_timer.timeout.disconnect()  # only records can tick it now
     live = window.page("Live")
     live.configure(source="fake:100000", tracker="fake", realtime=True)
