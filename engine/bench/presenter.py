@@ -21,6 +21,8 @@ Side by side in one process, on the same preloaded frames (decoding is not timed
   paper preset, with the studio's part boxes as the model and with the first box split;
 - distractor: a second person crossing in front, standing beside, walking behind (the
   default also over the filter's seeds ``DISTRACTOR_SEEDS``: ``stolen_frames_over_seeds``);
+- distractor_check: the check cases (other seeds, looks and sizes, what the depth agreement's
+  std was chosen on), the default's stolen frames over the same filter seeds;
 - two_view: the presenter's floor distance d and floor position from the second view against
   the studio's truth (static camera, rail camera, and ``zoom``: the second camera zooming with
   a lens-model floor calibration, the fixed homography's errors beside it as
@@ -313,6 +315,26 @@ def _distractor(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def _distractor_check(args: argparse.Namespace) -> dict[str, Any]:
+    """The check distractor cases (other seeds, looks, sizes; what ``depth_sigma_m`` was
+    chosen on): the default's stolen frames over the filter seeds."""
+    from engine.bench import presenter_scenarios as sc
+
+    out: dict[str, Any] = {}
+    for case in sc.DISTRACTOR_CHECK:
+        stolen = []
+        for seed in DISTRACTOR_SEEDS:
+            def run(frames: list[Frame], seed: int = seed) -> list[Any]:
+                t = make_tracker("presenter", args.particles, seed=seed)
+                return [t.track(f) for f in frames]
+            r = sc.distractor(run, f"check_{case}")
+            stolen.append(r["stolen_frames"])
+        out[case] = {"source": r["source"], "seeds": list(DISTRACTOR_SEEDS),
+                     "stolen_frames": stolen, "median": float(np.median(stolen)),
+                     "max": int(max(stolen))}
+    return out
+
+
 def _two_view(args: argparse.Namespace) -> dict[str, Any]:
     from engine.bench import presenter_scenarios as sc
 
@@ -496,6 +518,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         if not args.skip_distractor:
             out["distractor"] = _distractor(args)
             log(f"distractor: {out['distractor']}")
+            out["distractor_check"] = _distractor_check(args)
+            log(f"distractor (check cases): {out['distractor_check']}")
         if not args.skip_two_view:
             out["two_view"] = _two_view(args)
             log(f"two_view: {out['two_view']}")

@@ -43,7 +43,7 @@ class PresenterParams(Params):
     sigma_min_px: float = param(3.0, lo=0.0, hi=100.0, step=0.5,
                                 help="lower bound of the x/y prediction noise std (px): small "
                                 "targets still move whole pixels")
-    velocity_gain: float = param(0.75, lo=0.0, hi=1.0, step=0.05,
+    velocity_gain: float = param(0.5, lo=0.0, hi=1.0, step=0.05,
                                  help="drift of the prediction: this fraction of the estimate's "
                                  "smoothed velocity is added to eq. (1)'s random walk (0 = the "
                                  "paper's pure random walk)")
@@ -53,7 +53,7 @@ class PresenterParams(Params):
                                  "engine.presenter.depth): a look-alike behind or in front "
                                  "of the presenter does not take the track; 0 = off (the "
                                  "paper: colour and motion only)")
-    trajectory_share: float = param(0.2, lo=0.0, hi=0.5, step=0.05,
+    trajectory_share: float = param(0.0, lo=0.0, hi=0.5, step=0.05,
                                     help="identity by trajectory (engine.presenter."
                                     "trajectory): while the estimate moves faster than a "
                                     "person can change speed, this share of the particles is "
@@ -77,11 +77,11 @@ class PresenterParams(Params):
                                 help="prediction noise std of the scale h per frame, fraction of "
                                 "h (eq. 1; with the ring term, which keeps h from shrinking "
                                 "into the person); 0 keeps the size fixed")
-    mode_seek: bool = param(True, help="output the mean of the particles' dominant mode "
+    mode_seek: bool = param(False, help="output the mean of the particles' dominant mode "
                             "(mean-shift from eq. 6's mean, kernel half a box wide) instead of "
                             "eq. (6)'s mean of all: with a second person in view the mean lies "
                             "between the two")
-    ring_weight: float = param(0.5, lo=0.0, hi=10.0, step=0.1,
+    ring_weight: float = param(1.0, lo=0.0, hi=10.0, step=0.1,
                                help="scale term beyond eq. (3): the colour likelihood is also "
                                "multiplied by exp(-this x BC_ring / lambda_col), BC_ring = the "
                                "Bhattacharyya coefficient of a ring around the box with the "
@@ -107,7 +107,7 @@ class PresenterParams(Params):
                            "target-like tenth of this frame's background (z = 0 target, 1 "
                            "background); LOST while z > loss_contrast. 'likelihood' = the "
                            "paper's test, P(z_col|s) < loss_percent % of Pref")
-    loss_contrast: float = param(0.5, lo=0.05, hi=2.0, step=0.05,
+    loss_contrast: float = param(0.7, lo=0.05, hi=2.0, step=0.05,
                                  help="contrast loss test: LOST while z > this (0.5 = half-way "
                                  "from the target's colour match to the background's)")
     loss_bg_quantile: float = param(0.1, lo=0.01, hi=0.9, step=0.05,
@@ -144,7 +144,7 @@ class PresenterParams(Params):
                                   help="Pref starts as the median P(z_col|s) of this many frames "
                                   "after the first (the first frame matches its own model "
                                   "exactly, an optimistic reference); no loss test meanwhile")
-    loss_frames: int = param(3, lo=1, hi=5, step=1,
+    loss_frames: int = param(2, lo=1, hi=5, step=1,
                              help="consecutive frames below Pmin before LOST is declared")
     model_update_rate: float = param(0.05, lo=0.0, hi=1.0, step=0.01,
                                      help="slow model update: per frame, the adapted patch "

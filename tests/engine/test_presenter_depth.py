@@ -13,10 +13,13 @@ from engine.frames import Frame
 from engine.presenter.depth import (
     FLOOR,
     GATE,
+    MAX_SPEED_M_S,
+    MIXED_SPREAD,
     RESEED_FRAMES,
     DepthReference,
     depth_likelihood,
     torso_depths,
+    torso_spread,
 )
 from engine.presenter.params import PresenterParams
 from engine.trackers import create_tracker
@@ -84,3 +87,30 @@ def test_a_look_alike_walking_behind_does_not_take_the_track() -> None:
 
     assert run(0.0) > 5
     assert run(PresenterParams().depth_sigma_m) == 0
+
+
+def test_the_reference_follows_a_walk_but_not_a_slide_onto_someone_behind() -> None:
+    ref = DepthReference(rate=0.5)
+    assert ref.update(2.0, 0.15, frame_rate_hz=30.0)
+    for k in range(1, 31):  # walking away at 1.2 m/s: followed within a few centimetres
+        assert ref.update(2.0 + 0.04 * k, 0.15, frame_rate_hz=30.0)
+    assert ref.z_m == pytest.approx(3.2, abs=0.06)
+    ref = DepthReference(rate=0.5)
+    ref.update(2.0, 0.15, frame_rate_hz=30.0)
+    for z in (2.3, 2.6, 2.75, 2.75):  # each inside the gate of the last reference
+        ref.update(z, 0.15, frame_rate_hz=30.0)
+    assert ref.z_m <= 2.0 + 4 * MAX_SPEED_M_S / 30.0 + 1e-9
+
+
+def test_a_box_over_two_depths_is_not_learned() -> None:
+    z = _depth()
+    z[20:110, 55:70] = 2.5  # a second person half a metre behind, overlapping
+    straddle = np.array([55.0, 80.0, 80.0])
+    spread = torso_spread(z, straddle, aspect=0.4)
+    assert spread > MIXED_SPREAD * 0.15
+    assert torso_spread(z, np.array([45.0, 80.0, 80.0]), aspect=0.4) == pytest.approx(0.0)
+    assert math.isnan(torso_spread(z, np.array([500.0, 80.0, 80.0]), aspect=0.4))
+    ref = DepthReference(rate=0.5)
+    ref.update(2.0, 0.15)
+    assert not ref.update(2.2, 0.15, spread_m=spread)
+    assert ref.z_m == 2.0
