@@ -14,18 +14,19 @@ of an upper-body one), and its weight is multiplied by::
 
     L_depth = f + (1 - f) exp(-0.5 ((z - z_ref) / sigma_z)^2),   f = FLOOR = 0.1
 
-with ``z_ref`` the depth at the estimate of the last confident frames (:class:`DepthReference`,
-an exponential average). The reference is learned only from an estimate whose samples agree
-(:data:`MIXED_SPREAD`: a box over two people half a metre apart has a median that is
-neither's) and moves no faster than a person walks (:data:`MAX_SPEED_M_S`): without these two
-the box slid onto a look-alike passing behind over a few frames, each frame's depth inside
-the gate, and the reference went with it (built-in studio, behind, same clothes: 75 and 74
-frames stolen for two of five filter seeds; 0 with them). A hypothesis without enough valid depth there (holes, beyond the
-range, off the image) is left as it is (L = 1), and so is every hypothesis while the
-reference is unknown. After a loss the reference is kept for :data:`RESEED_FRAMES` frames
-(a presenter covered by someone crossing in front is re-acquired at its own depth, not at
-the other person's), then forgotten, so that a presenter who comes back later at another
-depth is found by colour as before.
+with ``z_ref`` the depth at the estimate of the last confident frames
+(:class:`DepthReference`, an exponential average). The reference is learned only from an
+estimate whose samples agree (:data:`MIXED_SPREAD`: a box over two people half a metre apart
+has a median that is neither's) and moves no faster than a person walks
+(:data:`MAX_SPEED_M_S`): without these two the box slid onto a look-alike passing behind
+over a few frames, each frame's depth inside the gate, and the reference went with it
+(built-in studio, behind, same clothes: 75 and 74 frames stolen for two of five filter
+seeds; 0 with them). A hypothesis without enough valid depth there (holes, beyond the range,
+off the image) is left as it is (L = 1), and so is every hypothesis while the reference is
+unknown. After a loss the reference is kept for :data:`RESEED_FRAMES` frames (a presenter
+covered by someone crossing in front is re-acquired at its own depth, not at the other
+person's), then forgotten, so that a presenter who comes back later at another depth is
+found by colour as before.
 """
 
 from __future__ import annotations
