@@ -300,19 +300,32 @@ def _distractor(args: argparse.Namespace) -> dict[str, Any]:
             out[case][kind] = sc.distractor(run, case)
         # the outcome of a crossing hangs on a few frames of particles: the default's stolen
         # frames over the filter's seeds (seed 0 is the one reported above)
-        stolen = [out[case]["presenter"]["stolen_frames"]]
-        for seed in DISTRACTOR_SEEDS[1:]:
-            def run_seed(frames: list[Frame], seed: int = seed) -> list[Any]:
-                t = make_tracker("presenter", args.particles, seed=seed)
-                return [t.track(f) for f in frames]
-            stolen.append(sc.distractor(run_seed, case)["stolen_frames"])
-        out[case]["presenter"]["stolen_frames_over_seeds"] = {
-            "seeds": list(DISTRACTOR_SEEDS), "stolen_frames": stolen,
-            "median": float(np.median(stolen)), "max": int(max(stolen))}
+        out[case]["presenter"]["stolen_frames_over_seeds"] = _over_seeds(
+            [out[case]["presenter"]["stolen_frames"],
+             *_stolen_frames(args, case, DISTRACTOR_SEEDS[1:])])
         src = out[case]["presenter"].pop("source")
         out[case]["paper"].pop("source")
         out[case]["source"] = src
     return out
+
+
+def _stolen_frames(args: argparse.Namespace, case: str, seeds: tuple[int, ...]) -> list[int]:
+    """The default's stolen frames in distractor ``case`` for each filter seed."""
+    from engine.bench import presenter_scenarios as sc
+
+    stolen = []
+    for seed in seeds:
+        def run(frames: list[Frame], seed: int = seed) -> list[Any]:
+            t = make_tracker("presenter", args.particles, seed=seed)
+            return [t.track(f) for f in frames]
+        stolen.append(int(sc.distractor(run, case)["stolen_frames"]))
+    return stolen
+
+
+def _over_seeds(stolen: list[int]) -> dict[str, Any]:
+    """Stolen frames over :data:`DISTRACTOR_SEEDS` with their median and maximum."""
+    return {"seeds": list(DISTRACTOR_SEEDS), "stolen_frames": stolen,
+            "median": float(np.median(stolen)), "max": int(max(stolen))}
 
 
 def _distractor_check(args: argparse.Namespace) -> dict[str, Any]:
@@ -320,19 +333,9 @@ def _distractor_check(args: argparse.Namespace) -> dict[str, Any]:
     chosen on): the default's stolen frames over the filter seeds."""
     from engine.bench import presenter_scenarios as sc
 
-    out: dict[str, Any] = {}
-    for case in sc.DISTRACTOR_CHECK:
-        stolen = []
-        for seed in DISTRACTOR_SEEDS:
-            def run(frames: list[Frame], seed: int = seed) -> list[Any]:
-                t = make_tracker("presenter", args.particles, seed=seed)
-                return [t.track(f) for f in frames]
-            r = sc.distractor(run, f"check_{case}")
-            stolen.append(r["stolen_frames"])
-        out[case] = {"source": r["source"], "seeds": list(DISTRACTOR_SEEDS),
-                     "stolen_frames": stolen, "median": float(np.median(stolen)),
-                     "max": int(max(stolen))}
-    return out
+    return {case: {"source": spec.format(n=sc.N_FRAMES["distractor"]),
+                   **_over_seeds(_stolen_frames(args, f"check_{case}", DISTRACTOR_SEEDS))}
+            for case, spec in sc.DISTRACTOR_CHECK.items()}
 
 
 def _two_view(args: argparse.Namespace) -> dict[str, Any]:

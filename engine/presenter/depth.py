@@ -91,15 +91,18 @@ def _samples(depth_m: NDArray[np.float32], xyh: F64, aspect: float) -> F64:
     return z
 
 
-def torso_spread(depth_m: NDArray[np.float32], xyh: F64, aspect: float) -> float:
-    """Spread (m) between the quartiles of the valid :data:`TORSO_GRID` depths of one state ``xyh``
-    (3,); NaN with fewer than :data:`MIN_VALID` valid samples."""
+def estimate_depth(depth_m: NDArray[np.float32], xyh: F64, aspect: float
+                   ) -> tuple[float, float]:
+    """One state ``xyh`` (3,): its depth (m; as :func:`torso_depths`) and the spread (m)
+    between the quartiles of its valid :data:`TORSO_GRID` samples, from one sampling; both NaN
+    with fewer than :data:`MIN_VALID` valid samples."""
     z = _samples(depth_m, np.asarray(xyh, dtype=np.float64).reshape(1, 3), aspect)[0]
     z = np.sort(z[np.isfinite(z)])
     n = len(z)
     if n < MIN_VALID:
-        return math.nan
-    return float(z[(3 * (n - 1)) // 4] - z[(n - 1) // 4])  # nearest-rank quartiles
+        return math.nan, math.nan
+    spread = float(z[(3 * (n - 1)) // 4] - z[(n - 1) // 4])  # nearest-rank quartiles
+    return float(np.median(z)), spread
 
 
 def depth_likelihood(z: F64, z_ref: float, sigma_m: float) -> F64:
@@ -130,7 +133,7 @@ class DepthReference:
     def update(self, z: float, sigma_m: float, spread_m: float = 0.0,
                frame_rate_hz: float = 30.0) -> bool:
         """A confident frame's depth at the estimate ``z`` (NaN: no change) and the spread of
-        its samples (:func:`torso_spread`); False when not learned (gated or mixed). A learned
+        its samples (:func:`estimate_depth`); False when not learned (gated or mixed). A learned
         step is at most :data:`MAX_SPEED_M_S` / ``frame_rate_hz``."""
         if not math.isfinite(z):
             return False

@@ -65,8 +65,8 @@ from engine.presenter.depth import (
     RESEED_FRAMES,
     DepthReference,
     depth_likelihood,
+    estimate_depth,
     torso_depths,
-    torso_spread,
 )
 from engine.presenter.extent import measure_extent
 from engine.presenter.jitter import JitterFilter
@@ -564,10 +564,8 @@ class ViewTracker:
             elif self._below == 0:
                 self.last_good_xyh = mean.copy()
                 if depth_m is not None:
-                    self.depth_ref.update(
-                        float(torso_depths(depth_m, mean[None, :], self.model.aspect)[0]),
-                        p.depth_sigma_m, torso_spread(depth_m, mean, self.model.aspect),
-                        self._fps())
+                    z_est, spread = estimate_depth(depth_m, mean, self.model.aspect)
+                    self.depth_ref.update(z_est, p.depth_sigma_m, spread, self._fps())
                 if not booting and p_col >= p.pref_adapt_ratio * self.p_ref:  # slow Pref adapt
                     self.p_ref += p.pref_adapt_rate * (p_col - self.p_ref)
                 if not booting and self._mu is not None and self._last_fixed is not None \

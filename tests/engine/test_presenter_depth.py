@@ -18,8 +18,8 @@ from engine.presenter.depth import (
     RESEED_FRAMES,
     DepthReference,
     depth_likelihood,
+    estimate_depth,
     torso_depths,
-    torso_spread,
 )
 from engine.presenter.params import PresenterParams
 from engine.trackers import create_tracker
@@ -106,10 +106,12 @@ def test_a_box_over_two_depths_is_not_learned() -> None:
     z = _depth()
     z[20:110, 55:70] = 2.5  # a second person half a metre behind, overlapping
     straddle = np.array([55.0, 80.0, 80.0])
-    spread = torso_spread(z, straddle, aspect=0.4)
+    z_est, spread = estimate_depth(z, straddle, aspect=0.4)
     assert spread > MIXED_SPREAD * 0.15
-    assert torso_spread(z, np.array([45.0, 80.0, 80.0]), aspect=0.4) == pytest.approx(0.0)
-    assert math.isnan(torso_spread(z, np.array([500.0, 80.0, 80.0]), aspect=0.4))
+    assert z_est == pytest.approx(torso_depths(z, straddle[None, :], aspect=0.4)[0])
+    assert estimate_depth(z, np.array([45.0, 80.0, 80.0]), aspect=0.4)[1] == pytest.approx(0.0)
+    assert all(math.isnan(v) for v in estimate_depth(z, np.array([500.0, 80.0, 80.0]),
+                                                       aspect=0.4))
     ref = DepthReference(rate=0.5)
     ref.update(2.0, 0.15)
     assert not ref.update(2.2, 0.15, spread_m=spread)
