@@ -13,7 +13,9 @@ time and the pose outputs on, blocks the GUI thread once in the middle for
   ``gui_stall_ms`` (the stall as measured);
 - ``tracker_ms_window{median,p95}`` against ``tracker_ms_headless{median,p95}`` (the same
   tracker on the same source headless, first, in the same process), their ``ratio``, and
-  ``fps_window`` against ``source_fps``.
+  ``fps_window`` against ``source_fps``; ``tracker_ms_headless_paced`` and
+  ``tracker_ratio_window_vs_headless_paced``: the headless run again, paced at the source's
+  rate (what real-time pacing alone costs, with no window in the process).
 
 Goals (issue 11): no packet missing at the output rate across the stall, max gap <= 1.5
 periods, capture -> send p95 <= 15 ms beyond the configured delay (0 here), tracker time in
@@ -125,17 +127,24 @@ def _stats(values: list[float]) -> dict[str, float | None]:
     return {"median": round(float(np.median(a)), 3), "p95": round(float(np.percentile(a, 95)), 3)}
 
 
-def headless_timing(source_spec: str, tracker: str, frames: int) -> list[float]:
-    """The tracker's time per frame headless (as ``studiotrack track``), first frame excluded."""
+def headless_timing(source_spec: str, tracker: str, frames: int,
+                    period_s: float | None = None) -> list[float]:
+    """The tracker's time per frame headless, first frame excluded: frame after frame (as
+    ``studiotrack track``), or with ``period_s`` paced as a live source delivers them (the
+    next frame at the next period boundary, the process idle in between, no window)."""
     from engine.loop import run_tracking
     from engine.sources import open_source
     from engine.trackers import create_tracker
 
     ms: list[float] = []
     with open_source(source_spec) as src:
+        t0 = time.perf_counter()
         for rec in run_tracking(src, create_tracker(tracker), max_frames=frames):
             if rec.seq > 0:
                 ms.append(rec.process_ms)
+            if period_s:
+                t_next = t0 + (rec.seq + 1) * period_s
+                time.sleep(max(0.0, t_next - time.perf_counter()))
     return ms
 
 
@@ -339,7 +348,7 @@ def run_window(source: str, tracker: str, *, seconds: float, stall_ms: float,
 
 
 def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
-              stall_ms: float) -> dict[str, Any]:
+              stall_ms: float, paced_ms: list[float] | None = None) -> dict[str, Any]:
     span = res.t1 - res.t0
     rate = res.rate_hz
     gaps_all: list[float] = []
@@ -360,8 +369,10 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
     lat = st.capture_to_send_ms if st is not None else (float("nan"),) * 3
     win = _stats(res.tracker_ms)
     head = _stats(headless_ms)
-    ratio = (round(win["median"] / head["median"], 3)
-             if win["median"] is not None and head["median"] else None)
+    paced = _stats(paced_ms or [])
+    ratio, ratio_paced = (round(win["median"] / ref["median"], 3)
+                          if win["median"] is not None and ref["median"] else None
+                          for ref in (head, paced))
     period_ms = 1000.0 / rate if rate == rate and rate > 0 else float("nan")
     return {
         "output_rate_hz": round(rate, 3),
@@ -387,6 +398,10 @@ def summarize(res: OnAirResult, headless_ms: list[float], source_fps: float,
         "tracker_ms_window": win,
         "tracker_ms_headless": head,
         "tracker_ratio_window_vs_headless": ratio,
+        # the same headless run paced at the source's rate: what real-time pacing alone
+        # costs (caches and core power state after each idle gap), without any window
+        "tracker_ms_headless_paced": paced,
+        "tracker_ratio_window_vs_headless_paced": ratio_paced,
         "fps_window": round(res.frames / span, 3) if span > 0 else None,
         "gui_tick_ms": _stats(res.tick_ms),
         # CPU time per thread over the measured span: what the air path needs from 2 cores,
@@ -528,12 +543,15 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     log(f"onair: {args.tracker} headless on {args.source} ({args.headless_frames} frames)")
     t = time.perf_counter()
     headless = headless_timing(args.source, args.tracker, args.headless_frames)
-    log(f"onair: headless median {statistics.median(headless):.1f} ms "
+    paced = headless_timing(args.source, args.tracker, args.headless_frames,
+                            period_s=1.0 / source_fps)
+    log(f"onair: headless median {statistics.median(headless):.1f} ms, paced at "
+        f"{source_fps:g} Hz {statistics.median(paced):.1f} ms "
         f"({time.perf_counter() - t:.0f} s); the window next")
     res = run_window(args.source, args.tracker, seconds=args.seconds,
                      stall_ms=args.stall_gui_ms, warmup_s=args.warmup, rate=rate,
                      targets=(args.freed, args.opentrackio))
-    out = summarize(res, headless, source_fps, args.stall_gui_ms)
+    out = summarize(res, headless, source_fps, args.stall_gui_ms, paced)
     log(f"onair: {out['packets_sent']}/{out['packets_expected']} packets, max gap "
         f"{out['max_send_gap_ms']} ms, capture->send p95 "
         f"{out['latency_capture_to_send_ms']['p95']} ms, window {out['fps_window']} fps")

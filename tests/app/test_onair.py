@@ -45,6 +45,23 @@ def test_gui_stall_does_not_stop_the_outputs(qtbot, settings_path: Path) -> None
     assert out["max_send_gap_ms_rx_thread"] is not None
 
 
+def test_paced_headless_reference() -> None:
+    """``bench onair``'s paced reference: frames come at the period (the run takes at least
+    the frames' periods) and the summary gives its figures and the window's ratio to them."""
+    from app.benches.onair import OnAirResult, headless_timing, summarize
+
+    t = time.perf_counter()
+    ms = headless_timing(SMALL_STUDIO, "ground-truth", 6, period_s=0.05)
+    assert time.perf_counter() - t >= 5 * 0.05
+    assert len(ms) == 5
+    res = OnAirResult(rate_hz=30.0, t0=0.0, t1=1.0, rx_times=[], tracker_ms=[3.0, 3.0],
+                      frames=30, dropped=0, stall_ms=0.0, stats=None)
+    out = summarize(res, [1.0], 30.0, 0.0, paced_ms=[2.0, 2.0])
+    assert out["tracker_ratio_window_vs_headless"] == 3.0
+    assert out["tracker_ms_headless_paced"]["median"] == 2.0
+    assert out["tracker_ratio_window_vs_headless_paced"] == 1.5
+
+
 def _rx() -> socket.socket:
     s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     s.bind(("127.0.0.1", 0))
