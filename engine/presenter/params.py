@@ -107,7 +107,7 @@ class PresenterParams(Params):
                            "target-like tenth of this frame's background (z = 0 target, 1 "
                            "background); LOST while z > loss_contrast. 'likelihood' = the "
                            "paper's test, P(z_col|s) < loss_percent % of Pref")
-    loss_contrast: float = param(0.7, lo=0.05, hi=2.0, step=0.05,
+    loss_contrast: float = param(0.5, lo=0.05, hi=2.0, step=0.05,
                                  help="contrast loss test: LOST while z > this (0.5 = half-way "
                                  "from the target's colour match to the background's)")
     loss_bg_quantile: float = param(0.1, lo=0.01, hi=0.9, step=0.05,
@@ -166,7 +166,7 @@ class PresenterParams(Params):
                                 "takes effect after a reset); 0 = off")
     reinit_particles: int = param(600, lo=10, hi=20000, step=50,
                                   help="particles of the diffuse prior while re-acquiring")
-    reacquire_frames: int = param(2, lo=1, hi=30, step=1,
+    reacquire_frames: int = param(1, lo=1, hi=30, step=1,
                                   help="consecutive frames above Pmin before the lock is declared")
     jitter_cutoff_hz: float = param(0.5, lo=0.0, hi=30.0, step=0.1,
                                     help="jitter low-pass cut-off (Hz); 0 = off. Lag behind a "

@@ -582,6 +582,10 @@ class ViewTracker:
             self.lost_frames += 1
             if self.lost_frames >= RESEED_FRAMES:
                 self.depth_ref.reset()  # gone for a while: may come back at any depth
+            if not bad and depth_m is not None:
+                # lock only at the presenter's kept depth (engine.presenter.depth)
+                z_probe = float(torso_depths(depth_m, probe[None, :], self.model.aspect)[0])
+                bad = not self.depth_ref.agrees(z_probe, p.depth_sigma_m)
             self._above = self._above + 1 if not bad else 0
             if self._above >= p.reacquire_frames:
                 self.state = TRACKING

@@ -90,7 +90,7 @@ def test_motion_cue_keeps_a_box_split_model_through_a_side_lit_walk(
             return [t.track(f) for f in frames]
         return run
 
-    # at loss_contrast 0.5 (the former default) the colour test alone breaks in this walk
+    # at loss_contrast 0.5 the colour test alone breaks in this walk
     off = runner(loss_motion=0.0, loss_contrast=0.5)
     on = runner(loss_motion=0.1, loss_contrast=0.5)
     assert sc.walk_false_lost(off, "check_light")["false_lost_frames"] > 10
