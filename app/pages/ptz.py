@@ -669,6 +669,12 @@ class LivePanel(QWidget):
             it.setData([], [])
         self.centre.setData([], [])
         self.pred.setData([], [])
+        req = self.run.request
+        if req is None or req.page != "PTZ":
+            # another page's run: the read-out stays about this page's own last run (its
+            # frame count is not this page's)
+            self.update_buttons()
+            return
         err = self.run.last_error
         st = self.run.status()
         frames = st.frames if st is not None else len(self.t)

@@ -137,6 +137,25 @@ def test_live_runs_the_sim(page, qtbot) -> None:  # type: ignore[no-untyped-def]
     assert live.start_button.isEnabled()
 
 
+def test_another_pages_run_leaves_the_readout_of_its_own(page, qtbot) -> None:  # type: ignore[no-untyped-def]
+    """A run started elsewhere (the Live page's) ends: the PTZ read-out still speaks of the
+    page's own last run, not of the other run's frame count."""
+    from app.run_owner import RunRequest
+
+    live = page.live
+    live.start("ptz-sim:duration=20", realtime=False)
+    qtbot.waitUntil(lambda: (page.display_tick(), len(live.t) > 10)[1], timeout=60000)
+    with qtbot.waitSignal(live.run.finished, timeout=10000):
+        live.stop_button.click()
+    own = live.readout.text()
+    assert own.startswith("Stopped after")
+    with qtbot.waitSignal(live.run.finished, timeout=30000):
+        live.run.start(RunRequest("synthetic:frames=3,width=160,height=120", "ground-truth",
+                                  realtime=False, page="Live"))
+    assert live.readout.text() == own
+    assert live.start_button.isEnabled()
+
+
 def pg_point(u: float, v: float):  # type: ignore[no-untyped-def]
     from PySide6.QtCore import QPointF
 
