@@ -25,7 +25,12 @@ that turn each off):
 - robust weighting (``outlier_prob`` > 0): mixture range density, consensus gate,
   re-initialisation of a beacon rejected ``REINIT_AFTER`` times in a row
   (:meth:`BeaconSlamFilter._gate`, :meth:`BeaconSlamFilter._stale_beacons`);
-- map-spread weighting (``map_spread_weighting``): eq. (10) integrated over the map cloud;
+- map-spread weighting (``map_spread_weighting``): eq. (10) integrated over the map cloud,
+  or over each particle's own beacon kernel with the 'kalman' gain;
+- the 'kalman' Map Adjustment gain (``map_adjust_gain``, default): each particle's beacon a
+  Gaussian kernel moved by its Kalman gain and narrowed by each reading, FastSLAM-style
+  (:func:`~engine.beacons.map_adjustment.kalman_map_adjustment`); eq. (12)'s fixed p is this
+  step for a round kernel of fixed width;
 - ring start-up (``ring_hypotheses`` > 0): multi-hypothesis bearings per beacon until the path
   turns (:meth:`BeaconSlamFilter._update_rings`);
 - gauge alignment (``gauge_aligned_estimate``): the estimate averaged in one frame;
@@ -65,9 +70,15 @@ from engine.beacons.likelihood import (
     normalise_log_weights,
     point_log_weights,
     predicted_ranges,
+    range_log_likelihood,
     weighted_residual_rms,
 )
-from engine.beacons.map_adjustment import annealed_gain, map_adjustment
+from engine.beacons.map_adjustment import (
+    annealed_gain,
+    kalman_map_adjustment,
+    kernel_range_sigma,
+    map_adjustment,
+)
 from engine.beacons.params import BeaconFilterParams
 from engine.beacons.startup import (
     BearingRing,
@@ -163,6 +174,7 @@ class BeaconSlamFilter:
         m = int(self.params.n_particles)
         self.cam = np.tile(self.start_xy, (m, 1))
         self.beacons = np.full((m, self.n, 2), np.nan)
+        self.beacon_cov = np.zeros((m, self.n, 2, 2))  # the 'kalman' gain's kernels
         self.known = np.zeros(self.n, dtype=bool)  # beacon initialised (read at least once)
         self.weights = np.full(m, 1.0 / m)
         self.first_ranges = np.full(self.n, np.nan)
@@ -268,7 +280,14 @@ class BeaconSlamFilter:
         is_ring = np.array([int(j) in self.rings for j in active], dtype=bool)
         pt = inl & ~is_ring
         log_w = np.zeros(self.n_particles)
-        if np.any(pt):
+        if np.any(pt) and p.map_spread_weighting and self._kernels():
+            # eq. (10) integrated over each particle's own beacon kernel (with the 'kalman'
+            # gain the beacon's distribution is the particle's kernel, not the cloud)
+            sig = kernel_range_sigma(self.cam, self.beacons[:, active[pt], :],
+                                     self.beacon_cov[:, active[pt]], p.range_sigma_m)
+            log_w = np.sum(range_log_likelihood(resid[:, pt], sig, p.outlier_prob,
+                                                p.max_range_m), axis=1)
+        elif np.any(pt):
             log_w = point_log_weights(
                 self.cam, self.beacons[:, active[pt], :], resid[:, pt], self.weights,
                 range_sigma_m=p.range_sigma_m, map_spread_weighting=p.map_spread_weighting,
@@ -293,7 +312,11 @@ class BeaconSlamFilter:
         if not (p.map_adjustment and not p.known_beacons and p.map_adjust_p > 0.0):
             return
         pts = np.array([j for j in adj if int(j) not in self.rings], dtype=np.intp)
-        if pts.size:
+        if pts.size and p.map_adjust_gain == "kalman":
+            self.beacons[:, pts, :], self.beacon_cov[:, pts] = kalman_map_adjustment(
+                self.cam, self.beacons[:, pts, :], self.beacon_cov[:, pts], ranges[pts],
+                p.range_sigma_m)
+        elif pts.size:
             gain: float | F64 = p.map_adjust_p
             if p.map_adjust_anneal:
                 gain = annealed_gain(p.map_adjust_p, self.n_reads[pts])
@@ -344,7 +367,19 @@ class BeaconSlamFilter:
             theta = point_bearings(self.n_particles, r, prev, layout_rel, span, p.hint_sigma_m,
                                    p.range_sigma_m, self.rng)
             self.beacons[:, i, :] = on_circle(self.cam, r, theta, p.range_sigma_m, self.rng)
+            self._init_kernels(i)
         self.known[i] = True
+
+    def _kernels(self) -> bool:
+        """Each particle's beacons are Gaussian kernels ('kalman' Map Adjustment on)."""
+        p = self.params
+        return bool(p.map_adjust_gain == "kalman" and p.map_adjustment
+                    and not p.known_beacons and p.map_adjust_p > 0.0)
+
+    def _init_kernels(self, i: int) -> None:
+        """'kalman' gain: beacon i's kernels, ``kernel_frac`` times its cloud's covariance."""
+        _, cov = weighted_mean_cov(self.beacons[:, i, :], self.weights)
+        self.beacon_cov[:, i] = self.params.kernel_frac * cov
 
     def _update_rings(self) -> None:
         """Extension, ring start-up: collapse a ring to one point per particle once each
@@ -356,6 +391,7 @@ class BeaconSlamFilter:
             if ring_confidence(self.rings[i], self.weights) >= self.params.ring_commit:
                 self.beacons[:, i, :] = sample_ring(self.rings[i], self.rng)
                 del self.rings[i]
+                self._init_kernels(i)
         for i, ring in self.rings.items():
             self.beacons[:, i, :] = sample_ring(ring, self.rng)
 
@@ -421,6 +457,7 @@ class BeaconSlamFilter:
         idx = systematic_resample(self.weights, m_new, self.rng)
         self.cam = self.cam[idx]
         self.beacons = self.beacons[idx]
+        self.beacon_cov = self.beacon_cov[idx]
         for ring in self.rings.values():
             ring.take(idx)
         self.weights = np.full(m_new, 1.0 / m_new)

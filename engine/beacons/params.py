@@ -37,6 +37,10 @@ EXTENSIONS: Mapping[str, Preset] = MappingProxyType({
     "layout_hint": Preset(
         "initial beacon bearings drawn around the operator's layout (startup.point_bearings); "
         "off: only the layout's quadrants", hint_sigma_m=0.0),
+    "kalman_map_adjustment": Preset(
+        "each particle's beacon a Gaussian kernel moved and narrowed by a Kalman step "
+        "(map_adjustment.kalman_map_adjustment), the weighting integrated over it",
+        map_adjust_gain="fixed"),
     "annealed_map_adjustment": Preset(
         "Map Adjustment gain max(p, 1/(k+1)) (map_adjustment.annealed_gain); off by default",
         map_adjust_anneal=False),
@@ -55,7 +59,9 @@ EXTENSIONS: Mapping[str, Preset] = MappingProxyType({
 #: beacon error, after the best rotation/reflection about the start): 0.2 (0.01: 8.0 m,
 #: 0.02: 7.6 m, 0.05: 7.8 m, 0.1: 7.2 m, 0.2: 5.9 m, 0.3: 6.5 m; without MA 8.8 m). The
 #: default's 0.01 is confirmed the same way (0.89 m; 0.02: 0.98 m, 0.05: 1.02 m, 0.1:
-#: 1.26 m; without MA 0.91 m).
+#: 1.26 m; without MA 0.91 m) for the fixed gain; the default's 'kalman' gain has no p to
+#: choose (p > 0 only switches it on): its kernel width ``kernel_frac`` 0.5 is chosen the same
+#: way (0.09: 0.68 m, 0.25: 0.59 m, 0.5: 0.58 m, 1.0: 0.60 m; without MA 0.91 m).
 PAPER_MAP_ADJUST_P = 0.2
 
 
@@ -91,8 +97,20 @@ class BeaconFilterParams(Params):
                                 help="Map Adjustment gain p of eq. (12): 0 off, 1 puts the "
                                 "beacon on the range circle")
     map_adjustment: bool = param(True, help="apply Map Adjustment, eq. (12), each step")
+    map_adjust_gain: str = param("kalman", choices=("fixed", "kalman"),
+                                 help="Map Adjustment's gain: 'fixed' = p along the line of "
+                                 "sight (eq. 12); 'kalman' (beyond the paper) = each "
+                                 "particle's beacon a Gaussian kernel, moved by its Kalman "
+                                 "gain and narrowed by each reading (FastSLAM-style; p "
+                                 "only switches it on; map_spread_weighting then integrates "
+                                 "over the particle's kernel)")
+    kernel_frac: float = param(0.5, lo=0.0001, hi=1.0, step=0.01,
+                               help="'kalman' gain: a new beacon's kernel covariance as this "
+                               "fraction of its initial cloud's covariance (a kernel "
+                               "bandwidth h^2)")
     map_adjust_anneal: bool = param(False,
-                                    help="beyond the paper: gain max(p, 1/(k+1)) for the k-th "
+                                    help="beyond the paper, with the 'fixed' gain: gain "
+                                    "max(p, 1/(k+1)) for the k-th "
                                     "reading of a beacon, a running mean of the range circles "
                                     "that settles as the beacon is seen more")
     outlier_prob: float = param(0.05, lo=0.0, hi=0.9, step=0.01,

@@ -65,6 +65,8 @@ QUANTILE = 75.0
 #: training seeds (for choosing p): disjoint from the reported seeds 0..S-1
 TRAIN_SEED0 = 1000
 TUNE_P = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3)
+#: the 'kalman' Map Adjustment's kernel width (fraction of a new beacon's cloud covariance)
+TUNE_KERNEL_FRAC = (0.09, 0.25, 0.5, 1.0)
 SETS = ("paper", "default")
 MA = ("with_ma", "without_ma")
 METRICS = ("beacon_err_final", "path_rmse")
@@ -392,17 +394,24 @@ def tune_map_adjust_p(n_seeds: int = 30, particles: int = 200) -> dict[str, Any]
                            "particles": particles,
                            "objective": "p75 path RMSE + p75 final beacon error (aligned), m"}
     for name in SETS:
+        base = set_params(name)
+        # the 'kalman' gain has no p to choose (p > 0 only switches it on): its kernel
+        # width instead; 0 = without Map Adjustment, in both
+        knob, values = (("kernel_frac", (0.0, *TUNE_KERNEL_FRAC))
+                        if base.map_adjust_gain == "kalman" else ("map_adjust_p", TUNE_P))
         rows = {}
-        for p in TUNE_P:
-            params = replace(set_params(name), n_particles=particles, map_adjustment=p > 0,
-                             map_adjust_p=p if p > 0 else 0.01)
+        for v in values:
+            params = with_values(base, {"n_particles": particles, "map_adjustment": v > 0,
+                                        knob: v if v > 0 else getattr(base, knob)})
             r = run_scene(params, scene, seed0=TRAIN_SEED0)
             obj = float(np.percentile(r.path_rmse, QUANTILE)
                         + np.percentile(r.beacon_err_final, QUANTILE))
-            rows[str(p)] = obj
-            log(f"  tune p {name:7s} p={p:<5} objective {obj:.3f} m")
+            rows[str(v)] = obj
+            log(f"  tune {name:7s} {knob}={v:<5} objective {obj:.3f} m")
         out[name] = rows
-        out[f"{name}_best_p"] = float(min(rows, key=lambda k: rows[k]))
+        out[f"{name}_knob"] = knob
+        out[f"{name}_best_{'p' if knob == 'map_adjust_p' else knob}"] = float(
+            min(rows, key=lambda k: rows[k]))
     return out
 
 

@@ -308,7 +308,8 @@ def test_every_extension_switch_is_live_and_its_off_value_valid() -> None:
     from engine.beacons.params import EXTENSIONS
 
     on_values: dict[str, dict[str, object]] = {  # where an extension is off by default
-        "annealed_map_adjustment": {"map_adjust_anneal": True},
+        # the annealed gain is a variant of eq. (12)'s fixed one
+        "annealed_map_adjustment": {"map_adjust_anneal": True, "map_adjust_gain": "fixed"},
         "beacon_jitter": {"beacon_jitter_m": 0.05},
         "ess_resampling": {"resample_ess_fraction": 0.5},
         "ring_startup": {"hint_sigma_m": 0.0},  # the ring and the gauge act without a hint
@@ -329,3 +330,44 @@ def test_every_extension_switch_is_live_and_its_off_value_valid() -> None:
         off = dataclasses.replace(on, **ext.values)  # type: ignore[arg-type]
         assert off != on, name
         assert not np.allclose(final(on), final(off)), f"switching off {name} changed nothing"
+
+
+def test_kalman_map_adjustment_is_the_kalman_update_and_eq12_for_a_round_kernel() -> None:
+    """The 'kalman' gain: each particle's beacon kernel N(f, P) updated by a range as the
+    textbook Kalman step with h = u^T (checked with matrices), which for an isotropic P is
+    eq. (12) with p = s_b^2 / (s_b^2 + s_r^2); the kernel narrows along the line of sight
+    only, and the weighting's std integrates the kernel."""
+    from engine.beacons.map_adjustment import (
+        kalman_map_adjustment,
+        kernel_range_sigma,
+        map_adjustment,
+    )
+
+    rng = np.random.default_rng(3)
+    cam = rng.normal(0.0, 2.0, (5, 2))
+    f = rng.normal(6.0, 3.0, (5, 2, 2))
+    a = rng.normal(0.0, 1.0, (5, 2, 2, 2))
+    P = a @ np.swapaxes(a, -1, -2) + 0.1 * np.eye(2)
+    d = np.array([7.0, 9.0])
+    sr = 0.3
+    f2, P2 = kalman_map_adjustment(cam, f, P, d, sr)
+    for m in range(5):
+        for k in range(2):
+            diff = f[m, k] - cam[m]
+            r = np.linalg.norm(diff)
+            h = (diff / r)[None, :]
+            s = float((h @ P[m, k] @ h.T)[0, 0]) + sr**2
+            K = P[m, k] @ h.T / s
+            assert np.allclose(f2[m, k], f[m, k] + K[:, 0] * (d[k] - r))
+            assert np.allclose(P2[m, k], (np.eye(2) - K @ h) @ P[m, k])
+    assert np.allclose(kernel_range_sigma(cam, f, P, sr)[0, 0],
+                       np.sqrt(float((f[0, 0] - cam[0]) @ P[0, 0] @ (f[0, 0] - cam[0]))
+                               / np.sum((f[0, 0] - cam[0]) ** 2) + sr**2))
+    sb = 0.8
+    round_P = np.broadcast_to(sb**2 * np.eye(2), P.shape)
+    f3, P3 = kalman_map_adjustment(cam, f, round_P, d, sr)
+    assert np.allclose(f3, map_adjustment(cam, f, d, sb**2 / (sb**2 + sr**2)))
+    u = (f[0, 0] - cam[0]) / np.linalg.norm(f[0, 0] - cam[0])
+    t = np.array([-u[1], u[0]])
+    assert u @ P3[0, 0] @ u < sb**2
+    assert np.isclose(t @ P3[0, 0] @ t, sb**2)
