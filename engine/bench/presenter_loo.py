@@ -67,6 +67,7 @@ FINE: tuple[Knob, ...] = (
     Knob("fit_width_max_frac", (1.6, 2.2), start=2.2),
     Knob("mode_seek", (False, True), start=False),
     Knob("trajectory_share", (0.0, 0.2), start=0.0),
+    Knob("exposure_normalise", (False, True), start=False),
 )
 
 

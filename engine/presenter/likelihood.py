@@ -98,15 +98,35 @@ def chromatic_fraction(hsv_u8: NDArray[np.uint8], xywh: tuple[int, int, int, int
     return float(np.mean((roi[..., 1] >= s_min) & (roi[..., 2] >= v_min)))
 
 
-def grey_world_gains(bgr: NDArray[np.uint8], step: int = 8) -> F64:
+#: exposure normalisation never scales a frame by more than this (or less than its inverse):
+#: a covered lens or a black frame is not amplified into noise
+MAX_EXPOSURE_GAIN = 4.0
+
+
+def frame_grey_level(bgr: NDArray[np.uint8], step: int = 8) -> float:
+    """The frame's mean grey level (mean of the channel means, every ``step``-th pixel)."""
+    m = np.asarray(cv2.mean(np.ascontiguousarray(bgr[::step, ::step]))[:3], dtype=np.float64)
+    return float(m.mean())
+
+
+def grey_world_gains(bgr: NDArray[np.uint8], step: int = 8,
+                     level: float | None = None) -> F64:
     """Per-channel gains that make the frame's mean grey (von Kries / grey-world balance).
 
     Cameras re-balance white continuously outdoors; dividing out the frame's mean colour keeps
     the hue-saturation histograms comparable with the reference (a pre-processing step; the
-    studio's controlled light needs it less).
+    studio's controlled light needs it less). With ``level`` (the reference frame's
+    :func:`frame_grey_level`) the mean grey is also brought to that level, within
+    :data:`MAX_EXPOSURE_GAIN`: exposure normalisation (beyond the paper), what a camera's
+    auto-exposure does, for lights that come up or go down during a shot; without it a darker
+    frame's pixels fall below the hue threshold into the brightness bins, and its grey pixels
+    into darker brightness bins, than the reference's.
     """
     m = np.asarray(cv2.mean(np.ascontiguousarray(bgr[::step, ::step]))[:3], dtype=np.float64)
-    return np.asarray(m.mean() / np.maximum(m, 1.0), dtype=np.float64)
+    grey = m.mean()
+    if level is not None and math.isfinite(level) and level > 0.0:
+        grey = float(np.clip(level, grey / MAX_EXPOSURE_GAIN, grey * MAX_EXPOSURE_GAIN))
+    return np.asarray(grey / np.maximum(m, 1.0), dtype=np.float64)
 
 
 def apply_gains(bgr: NDArray[np.uint8], gains: F64 | None) -> NDArray[np.uint8]:

@@ -14,6 +14,7 @@ rebuilt from the reference image on load, so nothing binary besides the PNG is s
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,7 @@ from engine.presenter.likelihood import (
     apply_gains,
     chromatic_fraction,
     direct_histogram,
+    frame_grey_level,
     grey_world_gains,
 )
 
@@ -58,6 +60,9 @@ class PatchModel:
     rel_boxes: NDArray[np.float64]  # (P, 4) x0, y0, x1, y1 / main w, h
     warnings: tuple[str, ...] = field(default=())
     grey_world: bool = True  # histograms of grey-world balanced images (frames must match)
+    #: the reference image's mean grey level (``likelihood.frame_grey_level``): the level
+    #: exposure normalisation brings each frame to
+    grey_level: float = math.nan
 
     def __post_init__(self) -> None:
         self.hists.flags.writeable = False
@@ -169,6 +174,7 @@ def build_model(image_bgr: NDArray[np.uint8], main_xywh: Sequence[float],
         rel_boxes=np.asarray(rels, dtype=np.float64),
         warnings=tuple(warnings),
         grey_world=grey_world,
+        grey_level=frame_grey_level(image_bgr),
     )
 
 

@@ -25,7 +25,8 @@ PAPER_PRESET = Preset(
     bg_weighting=0.0, fit_width=False, grey_world=False, loss_test="likelihood", loss_motion=0.0,
     loss_percent=10.0, pref_init_frames=0, pref_adapt_ratio=0.6, n_particles=100,
     trajectory_share=0.0, lambda_col=0.1, reacquire_frames=1, loss_bg_weighting=1.0,
-    floor_scale=False, floor_lean=False, depth_sigma_m=0.0, loss_frames=1)
+    floor_scale=False, floor_lean=False, depth_sigma_m=0.0, loss_frames=1,
+    exposure_normalise=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,6 +74,11 @@ class PresenterParams(Params):
     grey_world: bool = param(True,
                              help="grey-world colour balance of each frame before the histograms "
                              "(for auto-white-balancing cameras)")
+    exposure_normalise: bool = param(False,
+                                     help="with grey_world: also bring each frame's mean grey "
+                                     "to the reference image's (at most 4x either way), as a "
+                                     "camera's auto-exposure would: lights coming up or going "
+                                     "down during a shot (beyond the paper)")
     sigma_h_frac: float = param(0.005, lo=0.0, hi=0.5, step=0.005,
                                 help="prediction noise std of the scale h per frame, fraction of "
                                 "h (eq. 1; with the ring term, which keeps h from shrinking "

@@ -443,7 +443,9 @@ class ViewTracker:
             # half-resolution green channel: motion needs no colour and no fine detail
             self.motion.update(bgr[:, :, 1], MOTION_STEP)
             timings["motion_ms"] = (time.perf_counter() - t0) * 1000.0
-        self._gains = grey_world_gains(bgr) if self.model.grey_world else None
+        self._gains = (grey_world_gains(bgr, level=self.model.grey_level
+                                        if p.exposure_normalise else None)
+                       if self.model.grey_world else None)
         self._lut = fc.gain_lut(self._gains)
         self._recent_motion = None
         first = len(self.particles) == 0

@@ -235,3 +235,20 @@ def test_tracker_results_are_the_same_with_the_reference_kernels(
     for a, b in zip(fast, ref, strict=True):
         assert a[0] == b[0]
         assert np.array_equal(np.hstack(a[1:]), np.hstack(b[1:]), equal_nan=True)
+
+
+def test_exposure_normalisation_brings_a_darker_frame_to_the_reference_level() -> None:
+    """``grey_world_gains(level=...)``: a frame at 40 % exposure is balanced to the reference
+    frame's mean grey (so its pixels land in the reference's bins), at most 4x either way,
+    and without ``level`` the gains are the plain grey-world ones."""
+    img = _scene(5)
+    level = lk.frame_grey_level(img)
+    dark = np.clip(img.astype(np.float64) * 0.4 + 0.5, 0, 255).astype(np.uint8)
+    g = lk.grey_world_gains(dark, level=level)
+    assert np.allclose(lk.frame_grey_level(lk.apply_gains(dark, g)), level, rtol=0.03)
+    plain = lk.grey_world_gains(dark)
+    assert np.array_equal(lk.grey_world_gains(dark, level=None), plain)
+    assert np.allclose(g / plain, 1.0 / 0.4, rtol=0.03)
+    black = np.full_like(img, 3)
+    cap = lk.grey_world_gains(black, level=level) / lk.grey_world_gains(black)
+    assert np.allclose(cap, lk.MAX_EXPOSURE_GAIN)

@@ -128,3 +128,24 @@ def test_distractor_reports_the_defaults_stolen_frames_over_seeds(
     assert over["stolen_frames"][0] == out["tiny"]["presenter"]["stolen_frames"]
     assert over["max"] == max(over["stolen_frames"])
     assert "stolen_frames_over_seeds" not in out["tiny"]["paper"]
+
+
+def test_exposure_normalisation_holds_a_walk_while_the_lights_come_up(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Lights coming up during a walk (``lighting=ramp``: exposure 0.4 -> 1.1): without
+    exposure normalisation the darker reference's colours no longer match and the presenter
+    is declared LOST while in view; with it, not (a development case, seed 29, not one the
+    bench reports)."""
+    monkeypatch.setitem(sc.WALK, "ramp_dev", sc._BASE + "seed=29,presenter_look=2,"
+                        "lighting=ramp,width=320,height=240")
+
+    def runner(on: bool) -> Any:
+        def run(frames: list[Frame]) -> list[Any]:
+            from engine.bench.presenter import presenter_params
+
+            t = create_tracker("presenter", presenter_params(exposure_normalise=on))
+            return [t.track(f) for f in frames]
+        return run
+
+    assert sc.walk_false_lost(runner(False), "ramp_dev")["false_lost_frames"] > 30
+    assert sc.walk_false_lost(runner(True), "ramp_dev")["false_lost_frames"] == 0
