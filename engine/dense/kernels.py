@@ -286,6 +286,72 @@ def project(
         Z[i] = Zi
 
 
+@njit(cache=True, fastmath=True, nogil=True)
+def project_rs(
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, rs: np.ndarray,
+    u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, lo: int, hi: int,
+) -> None:
+    """:func:`project` for a rolling-shutter colour camera (beyond the paper): row ``v`` is
+    exposed ``tau = (v - row0) t_row`` seconds after the frame's instant, when the camera has
+    moved by ``tau (v, w)`` (the twist per second ``rs[2:8]``, constant over the frame), so a
+    point ``X`` of the frame-instant camera is seen at ``X - tau (v + w x X)`` (first order;
+    ``tau`` from the row of its global-shutter projection). ``rs = (t_row, row0, vx, vy, vz,
+    wx, wy, wz)``."""
+    fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
+    r10, r11, r12, t1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
+    r20, r21, r22, t2 = T[2, 0], T[2, 1], T[2, 2], T[2, 3]
+    t_row, row0 = rs[0], rs[1]
+    vx, vy, vz, wx, wy, wz = rs[2], rs[3], rs[4], rs[5], rs[6], rs[7]
+    Px = P[0]
+    Py = P[1]
+    Pz = P[2]
+    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
+        px = np.float64(Px[i])
+        py = np.float64(Py[i])
+        pz = np.float64(Pz[i])
+        X = r00 * px + r01 * py + r02 * pz + t0
+        Y = r10 * px + r11 * py + r12 * pz + t1
+        Zi = r20 * px + r21 * py + r22 * pz + t2
+        iz = 1.0 / max(Zi, 1e-3)
+        xn = X * iz
+        yn = Y * iz
+        r2 = xn * xn + yn * yn
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+        tau = (fy * yd + cy - row0) * t_row
+        Xr = X - tau * (vx + wy * Zi - wz * Y)
+        Yr = Y - tau * (vy + wz * X - wx * Zi)
+        Zr = Zi - tau * (vz + wx * Y - wy * X)
+        iz = 1.0 / max(Zr, 1e-3)
+        xn = Xr * iz
+        yn = Yr * iz
+        r2 = xn * xn + yn * yn
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
+        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+        u0[i] = fx * xd + cx
+        v0[i] = fy * yd + cy
+        Z[i] = Zr
+
+
+@njit(cache=True, nogil=True)
+def rs_velocity(T_prev: np.ndarray, T: np.ndarray, dt: float, rs: np.ndarray) -> None:
+    """The camera's twist per second into ``rs[2:8]`` from the previous frame's pose
+    ``T_prev`` (= T_prev_ref) and this frame's current estimate ``T`` (= T_cur_ref): the motion
+    ``D = T_prev_ref inv(T_cur_ref)`` (previous camera -> current camera) over ``dt``, first
+    order (a frame's motion is small): ``v = t_D / dt``, ``w = vee(R_D - R_D^T) / (2 dt)``."""
+    D = T_prev @ _inverse(T)
+    k = 1.0 / dt
+    rs[2] = D[0, 3] * k
+    rs[3] = D[1, 3] * k
+    rs[4] = D[2, 3] * k
+    rs[5] = 0.5 * (D[2, 1] - D[1, 2]) * k
+    rs[6] = 0.5 * (D[0, 2] - D[2, 0]) * k
+    rs[7] = 0.5 * (D[1, 0] - D[0, 1]) * k
+
+
 @njit(cache=True, nogil=True)
 def sample(
     u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, cstar: np.ndarray, img: np.ndarray,
@@ -573,15 +639,19 @@ def accumulate(
 
 @njit(cache=True, nogil=True)
 def _photometric_chunk(
-    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, cs: np.ndarray,
-    img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float, mdw: float,
-    use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, rs: np.ndarray,
+    cs: np.ndarray, img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float,
+    mdw: float, use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
     wz: np.ndarray, inside: np.ndarray, over_kept: bool, bins: np.ndarray, hist: np.ndarray,
     lo: int, hi: int,
 ) -> int:
     """Project, sample and histogram points ``lo:hi`` (one thread's share); the histogram
-    counts the points the depth test keeps (``over_kept``) or all inside the image."""
-    project(P, T, cam, dist, u0, v0, Z, lo, hi)
+    counts the points the depth test keeps (``over_kept``) or all inside the image. A
+    rolling-shutter camera (``rs[0]`` > 0) projects with :func:`project_rs`."""
+    if rs[0] > 0.0:
+        project_rs(P, T, cam, dist, rs, u0, v0, Z, lo, hi)
+    else:
+        project(P, T, cam, dist, u0, v0, Z, lo, hi)
     nv = sample(
         u0, v0, Z, cs, img, depth, scale, inv_tau2, mdw, use_depth, e, wz, inside, lo, hi
     )
@@ -591,8 +661,9 @@ def _photometric_chunk(
 
 @njit(cache=True, nogil=True, parallel=True)
 def _photometric_par(
-    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, cs: np.ndarray,
-    img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float, mdw: float,
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, rs: np.ndarray,
+    cs: np.ndarray, img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float,
+    mdw: float,
     use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
     wz: np.ndarray, inside: np.ndarray, over_kept: bool, bins: np.ndarray, hists: np.ndarray,
     nv: np.ndarray, m: int,
@@ -603,8 +674,8 @@ def _photometric_par(
     for c in prange(nc):
         hists[c, :] = 0
         nv[c] = _photometric_chunk(
-            P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e,
-            wz, inside, over_kept, bins, hists[c], c * m // nc, (c + 1) * m // nc,
+            P, T, cam, dist, rs, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z,
+            e, wz, inside, over_kept, bins, hists[c], c * m // nc, (c + 1) * m // nc,
         )
 
 
@@ -621,8 +692,9 @@ def _accumulate_par(
 
 @njit(cache=True, nogil=True)
 def _photometric_pass(
-    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, cs: np.ndarray,
-    img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float, mdw: float,
+    P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray, rs: np.ndarray,
+    cs: np.ndarray, img: np.ndarray, depth: np.ndarray, scale: float, inv_tau2: float,
+    mdw: float,
     use_depth: bool, u0: np.ndarray, v0: np.ndarray, Z: np.ndarray, e: np.ndarray,
     wz: np.ndarray, inside: np.ndarray, over_kept: bool, bins: np.ndarray, hist: np.ndarray,
     hists: np.ndarray, nv: np.ndarray, m: int,
@@ -633,12 +705,12 @@ def _photometric_pass(
     if nc <= 1:
         hist[:] = 0
         return _photometric_chunk(
-            P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e,
-            wz, inside, over_kept, bins, hist, m - m, m,  # 0, not the literal: see the module doc
+            P, T, cam, dist, rs, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z,
+            e, wz, inside, over_kept, bins, hist, m - m, m,  # 0, not the literal: module doc
         )
     _photometric_par(
-        P, T, cam, dist, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e, wz,
-        inside, over_kept, bins, hists, nv, m,
+        P, T, cam, dist, rs, cs, img, depth, scale, inv_tau2, mdw, use_depth, u0, v0, Z, e,
+        wz, inside, over_kept, bins, hists, nv, m,
     )
     for k in range(hist.shape[0]):
         s = 0
@@ -794,6 +866,8 @@ def minimize(
     geo_weight: float,
     min_geo_scale: float,
     T_cd: np.ndarray,
+    T_prev: np.ndarray,
+    rs_cfg: np.ndarray,
     stop_px: float,
     z_typ: float,
     quality_scale: float,
@@ -823,6 +897,10 @@ def minimize(
     term in units of its own robust (Tukey) scale, the geometric one times ``geo_weight``,
     at the finest level (0) only.
     ``nthreads`` > 1 splits the photometric passes over that many threads (numba prange).
+    ``rs_cfg = (t_row, row0, dt)`` with ``t_row`` > 0 and ``dt`` > 0: a rolling-shutter colour
+    camera (:func:`project_rs`), the camera's velocity taken before every photometric
+    evaluation from the previous frame's pose ``T_prev`` (T_prev_ref) and the current estimate
+    over ``dt`` seconds (:func:`rs_velocity`): the frame's own motion, not a prediction.
 
     Quality report: ``w_out`` and the inlier fraction (share of points with weight > 0.1) use
     the Tukey scale ``c * quality_scale`` when ``quality_scale`` > 0 (the sequence's typical
@@ -872,15 +950,23 @@ def minimize(
     last_lev = 0
     m_last = n
     stats = np.zeros(N_STATS)
+    rs = np.zeros(8)
+    use_rs = rs_cfg[0] > 0.0 and rs_cfg[2] > 0.0
+    if use_rs:
+        rs[0] = rs_cfg[0]
+        rs[1] = rs_cfg[1]
     for lev in range(2, -1, -1):
         img = img0 if lev == 0 else (img1 if lev == 1 else img2)
         m = min(n, max(int(level_n[lev]), 12))
         Jl = J[lev]
         csl = cstar[lev]
         for it in range(iters[lev]):
+            if use_rs:
+                rs_velocity(T_prev, T, rs_cfg[2], rs)
             nvalid = _photometric_pass(
-                P, T, cam, dist, csl, img, depth, scales[lev], inv_tau2, missing_depth_weight,
-                use_depth, u0, v0, Z, e, wz, inside, scale_over_kept, bins, hist, hists, nv, m,
+                P, T, cam, dist, rs, csl, img, depth, scales[lev], inv_tau2,
+                missing_depth_weight, use_depth, u0, v0, Z, e, wz, inside, scale_over_kept,
+                bins, hist, hists, nv, m,
             )
             last_lev = lev
             m_last = m
@@ -926,7 +1012,12 @@ def minimize(
                 # (the geometric points: their own set, or the photometric ones)
                 mg = min(ng, max(12, (ng * m) // n))
                 M = _inverse(T) @ T_cd
-                project(Pg, T, cam, dist, ug, vg, Zg, m - m, mg)
+                if use_rs:
+                    # the current depth where its rows saw the points; Zg their depth
+                    # there, so Q = (z / Zg) T P lies on the instant's ray (first order)
+                    project_rs(Pg, T, cam, dist, rs, ug, vg, Zg, m - m, mg)
+                else:
+                    project(Pg, T, cam, dist, ug, vg, Zg, m - m, mg)
                 gather_cells(ug, vg, depth, cells, m - m, mg)
                 sample_geometric(ug, vg, Zg, Pg, N, cells, T, M, inv_tau2, rg, wg, m - m, mg)
                 hist[:] = 0

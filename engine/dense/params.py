@@ -101,6 +101,13 @@ class DenseParams(Params):
                                          help="move reference points by the camera motion "
                                          "between the depth and colour timestamps "
                                          "(Frame.depth_timestamp_s, e.g. TUM)")
+    rolling_shutter: bool = param(True,
+                                  help="model the colour camera's rolling shutter where its "
+                                  "calibration gives a readout time (camera.json "
+                                  "rolling_shutter_s): each point warped as seen by its row, "
+                                  "the camera's velocity the motion from the previous frame to "
+                                  "this frame's estimate; off: one instant per image (the "
+                                  "paper)")
     threads: int = param(1, lo=1, hi=16,
                          help="threads sharing the point passes of each iteration (numba); 1: "
                          "the tracker's own thread only (steadiest on a busy machine)")
@@ -168,7 +175,7 @@ class DenseParams(Params):
             scale_over_kept=False, min_residual_scale=0.0, edge_depth_ratio=0.0,
             brightness_offset=False, brightness_gain=False, stop_px=0.0,
             coarse_point_fraction=1.0, geometric_weight=0.0, geometric_noise_model=False,
-            compensate_depth_delay=False,
+            compensate_depth_delay=False, rolling_shutter=False,
             motion_model=False,
         ),
     }

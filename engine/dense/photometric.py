@@ -8,6 +8,7 @@ runs Algorithm 1 against a current frame and returns the base transform T^ = T_c
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -182,6 +183,26 @@ def _camera_inputs_of(
             _ro(pyr.level_scales(), np.float64))
 
 
+def _at_frame_instant(P: F64, rows: NDArray[np.int64], rs: F64) -> F64:
+    """Points ``P`` (n, 3) seen at full-resolution ``rows`` by a rolling-shutter camera
+    moving with ``rs[2:8]``, moved to the frame's instant (first order)."""
+    tau = (rows.astype(np.float64) - rs[1]) * rs[0]
+    v = np.asarray(rs[2:5], dtype=np.float64)
+    w = np.asarray(rs[5:8], dtype=np.float64)
+    return np.asarray(P + tau[:, None] * (v[None, :] + np.cross(w[None, :], P)),
+                      dtype=np.float64)
+
+
+def _rs_config(intr: Intrinsics, readout_s: float, dt_s: float) -> F64:
+    """``(t_row, row0, dt)`` for :func:`engine.dense.kernels.minimize`: seconds per
+    full-resolution row, the row exposed at the frame's instant (the middle one), and the time
+    since the previous frame (0: no rolling-shutter model)."""
+    on = readout_s > 0.0 and dt_s > 0.0 and math.isfinite(readout_s) and math.isfinite(dt_s)
+    cfg = np.array([readout_s / max(intr.height, 1), 0.5 * (intr.height - 1), dt_s]
+                   if on else [0.0, 0.0, 0.0], dtype=np.float64)
+    return _ro(cfg, np.float64)
+
+
 def spread_order(n: int) -> NDArray[np.int64]:
     """A permutation of ``range(n)`` whose prefixes of length n/4 and n/2 are every 4th and
     every 2nd index: on points sorted in image order, any such prefix covers the image."""
@@ -233,6 +254,7 @@ def build_reference(
     with_normals: bool = False,
     geometric_points: int = 0,
     geometric_noise_model: bool = False,
+    rs_ref: F64 | None = None,
 ) -> Reference:
     """Select the ``n_points`` strongest-gradient points with valid depth (sec. 4.5, eq. (14))
     and precompute c* and the Jacobian of eq. (6) at every level.
@@ -242,7 +264,11 @@ def build_reference(
     over every pixel with valid, non-edge depth and a normal (flat walls and floors constrain
     the geometry as much as textured edges do), else the photometric points themselves.
     ``geometric_noise_model``: each normal is scaled by :func:`geometric_noise_weights` of its
-    point's depth (the residual in units of its depth noise; ``normals`` are then not unit)."""
+    point's depth (the residual in units of its depth noise; ``normals`` are then not unit).
+    ``rs_ref`` (``(t_row, row0, vx, vy, vz, wx, wy, wz)``, the reference frame's readout per
+    row and velocity, :func:`engine.dense.kernels.project_rs`): a rolling-shutter frame's
+    points, each measured at its own row's instant, are moved to the frame's instant (c* and
+    the Jacobian stay those of the pixels where they were seen)."""
     from engine.dense import kernels
 
     intr = pre.intrinsics
@@ -319,6 +345,21 @@ def build_reference(
         _ro(pre.levels[2], f32), _ro(cam_vector(intr), f64), _ro(intr.dist, f64),
         _ro(pyr.level_scales(), f64), cstar, J,
     )
+    if rs_ref is not None and rs_ref[0] > 0.0:
+        # seen at X_row = X - tau (v + w x X) (kernels.project_rs): X = X_row + tau (v + w x
+        # X_row) to first order, tau from the row the point was seen in
+        P = _at_frame_instant(P, vf[idx], rs_ref)
+        P32 = np.ascontiguousarray(P.T, dtype=np.float32)
+        if Pg32 is not None and Pg is not None and N is not None:
+            # the depth image's rows too (a depth sensor scanning in step with the colour
+            # one, as a Kinect's); the current depth is read at the rows the points are seen
+            # in (kernels.minimize), so both sides of the point-to-plane residual are at the
+            # frames' instants
+            vg = vf[cg][has_n] if with_normals and geometric_points > 0 else vf[idx]
+            Pg = _at_frame_instant(Pg, vg, rs_ref)
+            Pg32 = np.ascontiguousarray(Pg.T, dtype=np.float32)
+            Jg = np.ascontiguousarray(
+                np.concatenate([-N, -np.cross(Pg, N)], axis=1).T, dtype=np.float32)
     uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float32)
     zmed = float(np.median(P[:, 2])) if n else 1.0
     # read-only from here on (the kernels then take them without a per-frame view, _ro)
@@ -400,6 +441,9 @@ def align(
     level_fraction: tuple[float, float, float] = (1.0, 1.0, 1.0),
     threads: int = 1,
     quality_scale: float = 0.0,
+    rolling_shutter_s: float = 0.0,
+    T_prev_ref: F64 | None = None,
+    dt_prev_s: float = 0.0,
 ) -> AlignResult:
     """Minimise eq. (1) from the initial base transform ``T0_cur_ref`` (Algorithm 1).
 
@@ -411,6 +455,10 @@ def align(
     that many threads. ``quality_scale`` (grey levels, > 0): report ``weights`` and
     ``inlier_fraction`` against this typical median residual instead of the frame's own (a
     frame that went wrong cannot make its residuals look normal by inflating its scale).
+    ``rolling_shutter_s`` (> 0, the colour camera's readout time, first to last row) with the
+    previous frame's pose ``T_prev_ref`` ``dt_prev_s`` seconds before: each point is warped
+    as seen by its own row (``kernels.project_rs``), the camera's velocity being the motion
+    from the previous frame to this frame's current estimate (beyond the paper).
     """
     from engine.dense import kernels
 
@@ -439,6 +487,8 @@ def align(
         _ro(Jg, f32) if use_geo and Jg is not None else _NO_JG,
         float(geo_weight) if use_geo else 0.0, float(min_geo_scale_m),
         _NO_TCD if T_color_depth is None else _ro(T_color_depth, f64),
+        _NO_TCD if T_prev_ref is None else _ro(T_prev_ref, f64),
+        _rs_config(intr, rolling_shutter_s, dt_prev_s if T_prev_ref is not None else 0.0),
         float(stop_px), float(ref.z_median_m), float(quality_scale), int(threads), w, uv, e,
         steps,
     )

@@ -72,6 +72,9 @@ F64 = NDArray[np.float64]
 
 #: the smallest typical residual (grey levels) the quality report measures against
 QUALITY_FLOOR_GREY = 1.0
+#: the rolling-shutter model takes the velocity from the previous frame only if it came
+#: at most this long before (a few dropped frames; after a longer gap, or a loss, none)
+RS_MAX_GAP_S = 0.2
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,7 +158,8 @@ class _DenseBase:
         return ph.preprocess(gray_u8(frame.color_bgr), frame.depth_m, intr)
 
     def _build_reference(
-        self, pre: ph.Preprocessed, frame: Frame | None = None
+        self, pre: ph.Preprocessed, frame: Frame | None = None,
+        twist_per_s: F64 | None = None,
     ) -> ph.Reference:
         p = self._params
         return ph.build_reference(
@@ -164,7 +168,31 @@ class _DenseBase:
             T_color_depth=self._depth_delay_transform(frame),
             with_normals=p.geometric_weight > 0, geometric_points=p.geometric_points,
             geometric_noise_model=p.geometric_noise_model,
+            rs_ref=self._reference_motion(
+                twist_per_s if twist_per_s is not None
+                else self._velocity if frame is not None else None),
         )
+
+    def _needs_motion(self, frame: Frame | None) -> bool:
+        """A reference built from ``frame`` now would lack its rolling-shutter motion (the
+        camera's velocity is not known yet: the first frame, or the first after a loss)."""
+        p = self._params
+        intr = self._intr
+        return bool(p.rolling_shutter and frame is not None and intr is not None
+                    and intr.rolling_shutter_s > 0.0 and self._velocity is None)
+
+    def _reference_motion(self, twist_per_s: F64 | None) -> F64 | None:
+        """The rolling-shutter model's ``rs_ref`` of a reference taken while the camera
+        moved with ``twist_per_s`` (body twist per second, (v, w); a new reference: the last
+        good step's, a stored keyframe: its own), or None (unknown, or no model)."""
+        p = self._params
+        intr = self._intr
+        if (not p.rolling_shutter or twist_per_s is None or intr is None
+                or intr.rolling_shutter_s <= 0.0):
+            return None
+        xi = twist_per_s
+        return np.array([intr.rolling_shutter_s / intr.height, 0.5 * (intr.height - 1),
+                         *xi[:3], *xi[3:]], dtype=np.float64)
 
     def _note_good_pose(
         self, frame: Frame, T_world_cam: F64, res: ph.AlignResult | None = None,
@@ -198,10 +226,28 @@ class _DenseBase:
             return None
         return se3_exp(self._velocity * dt)  # T_color_depth = exp(xi (t_d - t_c))
 
+    def _rolling_shutter(self, frame: Frame | None, T_world_ref: F64 | None
+                         ) -> tuple[float, F64 | None, float]:
+        """``(readout_s, T_prev_ref, dt_s)`` for :func:`ph.align`: the camera's readout time
+        and the previous frame's pose against the reference, if that frame was tracked and
+        is recent (no rolling-shutter model otherwise)."""
+        p = self._params
+        intr = self._intr
+        prev = self._last_good_stamped
+        if (not p.rolling_shutter or frame is None or T_world_ref is None or intr is None
+                or intr.rolling_shutter_s <= 0.0 or prev is None or self._lost_frames > 0):
+            return 0.0, None, 0.0
+        dt = float(frame.timestamp_s) - prev[0]
+        if not (0.0 < dt <= RS_MAX_GAP_S):
+            return 0.0, None, 0.0
+        return intr.rolling_shutter_s, invert(prev[1]) @ T_world_ref, dt
+
     def _align(
-        self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64, frame: Frame | None = None
+        self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64, frame: Frame | None = None,
+        T_world_ref: F64 | None = None,
     ) -> _Attempt:
         p = self._params
+        readout, T_prev_ref, dt_prev = self._rolling_shutter(frame, T_world_ref)
         # the geometric term compares depth with depth, both at the depth instant: no
         # T_color_depth (moving the current depth by the tracker's own velocity estimate
         # extrapolates more than a frame on TUM, depth ~35 ms behind colour, and diverged)
@@ -213,7 +259,8 @@ class _DenseBase:
             min_geo_scale_m=p.min_geometric_scale_m,
             brightness_gain=p.brightness_gain,
             stop_px=p.stop_px, level_fraction=p.level_fraction_fine_to_coarse,
-            quality_scale=self._quality_scale(),
+            quality_scale=self._quality_scale(), rolling_shutter_s=readout,
+            T_prev_ref=T_prev_ref, dt_prev_s=dt_prev,
         )
         good, why = _check(res, T0, p, self._max_residual())
         return _Attempt(res, good, why)
@@ -339,7 +386,7 @@ class DenseIncrementalTracker(_DenseBase):
         self._T_world_ref: F64 = np.eye(4)
         self._T_cur_ref: F64 = np.eye(4)
         self._ref_id = -1
-
+        self._ref_frame: Frame | None = None  # a reference to rebuild once moving (RS)
 
     def track(self, frame: Frame) -> TrackResult:
         t_start = time.perf_counter()
@@ -361,9 +408,14 @@ class DenseIncrementalTracker(_DenseBase):
             )
         if rebuild:
             self._ref = self._build_reference(self._ref_pre)
+        elif self._ref_frame is not None and self._velocity is not None:
+            # the reference came before the camera's velocity was known (rolling shutter):
+            # the last good step's stands for its own
+            self._ref = self._build_reference(self._ref_pre, self._ref_frame)
+            self._ref_frame = None
         t = time.perf_counter()
         T0 = invert(self._predict()) @ self._T_world_ref
-        att = self._align(self._ref, pre, T0, frame)
+        att = self._align(self._ref, pre, T0, frame, self._T_world_ref)
         if not att.good and self._lost_frames > 0:
             # relocalise: also try from the reference pose itself
             alt = self._align(self._ref, pre, np.eye(4), frame)
@@ -398,6 +450,9 @@ class DenseIncrementalTracker(_DenseBase):
 
     def _set_reference(self, pre: ph.Preprocessed, T_world_ref: F64, frame: Frame) -> None:
         self._ref = self._build_reference(pre, frame)
+        # built before the camera's velocity was known (rolling-shutter model): rebuilt
+        # after the next good frame
+        self._ref_frame = frame if self._needs_motion(frame) else None
 
         self._ref_pre = pre
         self._T_world_ref = np.array(T_world_ref)
@@ -443,6 +498,9 @@ class DenseKeyframeTracker(_DenseBase):
         self._kf_id: int | None = None
         # a keyframe decided on but not built yet: (frame, its pre-processing, pose)
         self._pending_kf: tuple[Frame, ph.Preprocessed, F64] | None = None
+        # keyframes whose reference was built before the camera's velocity was known (the
+        # rolling-shutter model): rebuilt once it is (kf id -> its frame, pre-processing)
+        self._unmoved: dict[int, tuple[Frame, ph.Preprocessed]] = {}
         self._started = False
         self._have_good = False
         if self._store is None and self._params.keyframes_dir:
@@ -460,6 +518,13 @@ class DenseKeyframeTracker(_DenseBase):
         if pending is not None:
             self._pending_kf = None
             self._add_keyframe(*pending)
+        if self._unmoved and self._velocity is not None:
+            # the velocity at the next good frame stands for the keyframe's own
+            for kf_id, (frame, pre) in list(self._unmoved.items()):
+                self._refs[kf_id] = self._build_reference(pre, frame)
+                if self._store is not None:
+                    self._store.set_twist(kf_id, self._velocity)
+            self._unmoved.clear()
 
     def _load_store(self, folder: str) -> None:
         # lazily: each keyframe's images are read once, for its reference (memory)
@@ -473,7 +538,7 @@ class DenseKeyframeTracker(_DenseBase):
         if ref is None:
             assert self._store is not None
             pre = ph.preprocess(kf.gray, kf.depth_m, self._store.intrinsics)
-            ref = self._build_reference(pre)
+            ref = self._build_reference(pre, twist_per_s=kf.twist_per_s)
             self._refs[kf.id] = ref
         return ref
 
@@ -521,7 +586,7 @@ class DenseKeyframeTracker(_DenseBase):
             timings["keyframe"] = (time.perf_counter() - t) * 1e3
             t = time.perf_counter()
             T0 = invert(self._predict()) @ kf.T_world_cam  # T^ = T_cur (T*)^-1, Alg. 3
-            att = self._align(ref, pre, T0, frame)
+            att = self._align(ref, pre, T0, frame, kf.T_world_cam)
             timings["minimize"] = (time.perf_counter() - t) * 1e3
         return self._finish(frame, pre, att, kf, timings, extras, t_start)
 
@@ -587,8 +652,11 @@ class DenseKeyframeTracker(_DenseBase):
         assert frame.color_bgr is not None
         assert frame.depth_m is not None
         gray = np.array(gray_u8(frame.color_bgr), dtype=np.uint8)
-        kf = self._store.add(T_world_cam, gray, np.array(frame.depth_m, dtype=np.float32))
+        kf = self._store.add(T_world_cam, gray, np.array(frame.depth_m, dtype=np.float32),
+                             twist_per_s=self._velocity)
         self._refs[kf.id] = self._build_reference(pre, frame)
+        if self._needs_motion(frame):
+            self._unmoved[kf.id] = (frame, pre)
         self._kf_id = kf.id
         return kf
 

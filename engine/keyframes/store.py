@@ -102,6 +102,10 @@ class Keyframe:
     _gray: NDArray[np.uint8] | None
     _depth_m: NDArray[np.float32] | None
     files: KeyframeFiles | None
+    #: the camera's body twist per second (v, w) when the keyframe was taken, for a
+    #: rolling-shutter camera's reference (engine.dense.photometric.build_reference); None
+    #: = not known
+    twist_per_s: F64 | None
 
     def __init__(
         self,
@@ -111,6 +115,7 @@ class Keyframe:
         depth_m: NDArray[np.float32] | None = None,
         *,
         files: KeyframeFiles | None = None,
+        twist_per_s: F64 | None = None,
     ) -> None:
         if (gray is None or depth_m is None) and files is None:
             raise KeyframeStoreError(f"keyframe {id}: needs its images or their files")
@@ -119,6 +124,8 @@ class Keyframe:
         object.__setattr__(self, "_gray", gray)
         object.__setattr__(self, "_depth_m", depth_m)
         object.__setattr__(self, "files", files)
+        object.__setattr__(self, "twist_per_s", None if twist_per_s is None
+                           else np.array(twist_per_s, dtype=np.float64).reshape(6))
 
     @property
     def gray(self) -> NDArray[np.uint8]:
@@ -145,12 +152,18 @@ class Keyframe:
         """This keyframe at another pose (images, or their files, shared)."""
         return Keyframe(
             self.id, np.array(T_world_cam, dtype=np.float64), self._gray, self._depth_m,
-            files=self.files,
+            files=self.files, twist_per_s=self.twist_per_s,
         )
 
     def with_depth(self, depth_m: NDArray[np.float32]) -> Keyframe:
         """This keyframe with another depth map (now held in memory)."""
-        return Keyframe(self.id, self.T_world_cam.copy(), self.gray, depth_m)
+        return Keyframe(self.id, self.T_world_cam.copy(), self.gray, depth_m,
+                        twist_per_s=self.twist_per_s)
+
+    def with_twist(self, twist_per_s: F64 | None) -> Keyframe:
+        """This keyframe with the camera's velocity when it was taken."""
+        return Keyframe(self.id, self.T_world_cam, self._gray, self._depth_m,
+                        files=self.files, twist_per_s=twist_per_s)
 
     def __repr__(self) -> str:
         where = "resident" if self.resident else f"lazy {self.files}"
@@ -228,12 +241,22 @@ class KeyframeStore:
         raise KeyError(kf_id)
 
     def add(
-        self, T_world_cam: F64, gray: NDArray[np.uint8], depth_m: NDArray[np.float32]
+        self, T_world_cam: F64, gray: NDArray[np.uint8], depth_m: NDArray[np.float32],
+        twist_per_s: F64 | None = None,
     ) -> Keyframe:
         kf_id = 1 + max((k.id for k in self.keyframes), default=-1)
-        kf = Keyframe(kf_id, np.array(T_world_cam, dtype=np.float64), gray, depth_m)
+        kf = Keyframe(kf_id, np.array(T_world_cam, dtype=np.float64), gray, depth_m,
+                      twist_per_s=twist_per_s)
         self.keyframes.append(kf)
         return kf
+
+    def set_twist(self, kf_id: int, twist_per_s: F64 | None) -> Keyframe:
+        """Record the camera's velocity at keyframe ``kf_id`` (known only a frame later)."""
+        for i, k in enumerate(self.keyframes):
+            if k.id == kf_id:
+                self.keyframes[i] = k.with_twist(twist_per_s)
+                return self.keyframes[i]
+        raise KeyError(kf_id)
 
     def subset(self, ids: Iterable[int]) -> KeyframeStore:
         """A new store with only the given keyframes (images shared)."""
@@ -372,10 +395,11 @@ class KeyframeStore:
             atomic_write_png(folder / gname, np.ascontiguousarray(kf.gray, dtype=np.uint8))
             d16 = np.clip(np.nan_to_num(kf.depth_m) * scale, 0, 65535).round().astype(np.uint16)
             atomic_write_png(folder / dname, d16)
-            entries.append(
-                {"id": kf.id, "T_world_cam": kf.T_world_cam.tolist(), "gray": gname,
-                 "depth": dname}
-            )
+            entry: dict[str, object] = {"id": kf.id, "T_world_cam": kf.T_world_cam.tolist(),
+                                        "gray": gname, "depth": dname}
+            if kf.twist_per_s is not None:
+                entry["twist_per_s"] = kf.twist_per_s.tolist()
+            entries.append(entry)
         index = {
             "format": STORE_FORMAT,
             "version": STORE_VERSION,
@@ -428,6 +452,7 @@ class KeyframeStore:
                 raise KeyframeStoreError(f"{where} is malformed ({exc!s})") from None
             if T.shape != (4, 4) or not np.all(np.isfinite(T)):
                 raise KeyframeStoreError(f"{where}: T_world_cam must be a finite 4x4 matrix")
+            twist = _twist_from(ent.get("twist_per_s"), where)
             R = T[:3, :3]
             if not np.allclose(R.T @ R, np.eye(3), atol=1e-5) or not math.isclose(
                 float(np.linalg.det(R)), 1.0, abs_tol=1e-5
@@ -442,7 +467,7 @@ class KeyframeStore:
                 )
                 _check_png_header(files.gray_path, 8, (intr.width, intr.height))
                 _check_png_header(files.depth_path, 16, (intr.width, intr.height))
-                kfs.append(Keyframe(kf_id, T, files=files))
+                kfs.append(Keyframe(kf_id, T, files=files, twist_per_s=twist))
                 continue
             gray = cv2.imread(str(folder / gname), cv2.IMREAD_UNCHANGED)
             depth = cv2.imread(str(folder / dname), cv2.IMREAD_UNCHANGED)
@@ -460,11 +485,24 @@ class KeyframeStore:
                     f"store's {intr.width}x{intr.height}"
                 )
             depth_m = depth.astype(np.float32) / np.float32(intr.depth_scale)
-            kfs.append(Keyframe(kf_id, T, u8(gray), depth_m))
+            kfs.append(Keyframe(kf_id, T, u8(gray), depth_m, twist_per_s=twist))
         ids = [k.id for k in kfs]
         if len(set(ids)) != len(ids):
             raise KeyframeStoreError(f"{index_path}: duplicate keyframe ids")
         return cls(intr, kfs)
+
+
+def _twist_from(raw: object, where: str) -> F64 | None:
+    """A keyframe's optional ``twist_per_s``: six finite numbers (m/s, rad/s), or absent."""
+    if raw is None:
+        return None
+    from engine.validate import number
+
+    if not isinstance(raw, list) or len(raw) != 6:
+        raise KeyframeStoreError(f"{where}: 'twist_per_s' must be a list of 6 numbers")
+    return np.array([number(v, f"{where}: 'twist_per_s'[{i}]", lo=-1e3, hi=1e3,
+                            error=KeyframeStoreError) for i, v in enumerate(raw)],
+                    dtype=np.float64)
 
 
 def _check_png_header(path: Path, bit_depth: int, size_wh: tuple[int, int]) -> None:

@@ -45,6 +45,9 @@ dropouts (0)           1: depth holes (2 % of the image + edge dropouts); or a f
 color_noise (0)        colour noise std (grey levels)
 vignette (0)           vignetting strength 0..1 (cos^4 law)
 blur (0)               Gaussian lens blur of the colour image, sigma in pixels (e.g. 0.6)
+rolling_shutter (0)    the camera's readout time, s (e.g. 0.02): rows of colour and depth
+                       exposed one after the other while the camera moves (as a Kinect's);
+                       the frames' intrinsics carry it (0 = global shutter)
 occluder (0)           1: a grey panel (0.7 x 1.3 m) moving 1.6 m in front of the rail
 cover_start            lens covered (dark image, no depth) from this frame ...
 cover_frames (20)      ... for this many frames (loss-and-relock tests)
@@ -202,6 +205,7 @@ OPTIONS: dict[str, Callable[[str], Any]] = {
     "zoom": _zoom,
     "zoom_cycle_s": _float(0.0, open_lo=True),
     "over_zoom": _zoom,
+    "rolling_shutter": _float(0.0, 0.999),
 }
 
 
@@ -338,6 +342,7 @@ def config_from_options(opts: dict[str, str]) -> Any:
         views=o.get("views", 1),
         zoom=zoom,
         over_zoom=over_zoom,
+        rolling_shutter_s=o.get("rolling_shutter", 0.0),
     )
 
 

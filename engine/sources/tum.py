@@ -25,6 +25,7 @@ Everything that can be checked without decoding images is checked at constructio
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -322,9 +323,13 @@ class TumSource(Source):
     @staticmethod
     def _load_intrinsics(folder: Path) -> Intrinsics:
         cam_json = folder / "camera.json"
-        if cam_json.exists():
-            return load_camera_json(cam_json)  # CalibrationError naming the file
         default = tum_default_for(folder.name)
+        if cam_json.exists():
+            cam = load_camera_json(cam_json)  # CalibrationError naming the file
+            if cam.rolling_shutter_s == 0.0 and default is not None:
+                # a TUM camera.json says nothing of the shutter: the sensor's readout
+                cam = dataclasses.replace(cam, rolling_shutter_s=default.rolling_shutter_s)
+            return cam
         if default is None:
             raise SourceError(
                 f"{folder}: no camera.json and the folder name does not say fr1/fr2/fr3; "

@@ -24,6 +24,8 @@ deterministic by seed. Each frame carries the truth as two payloads:
 
 from __future__ import annotations
 
+import dataclasses
+import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -108,6 +110,9 @@ class StudioLabels(FramePayload):
         readonly(self.labels)
         readonly(self.depth_exact_m)
 
+#: row bands of a rolling-shutter colour image, each rendered at its own instant
+RS_BANDS = 24
+
 #: Kinect-like camera of the studio at 640x480 (TUM's default ROS calibration)
 KINECT_FX = 525.0
 #: the optional lens distortion: TUM freiburg1's (a real Kinect's) Caltech coefficients
@@ -157,8 +162,15 @@ class StudioConfig:
     #: how textures are sampled (``engine.studio.render.RENDER_METHODS``): remap (fast) or
     #: raycast (the kernel's own floating-point fetch; colours within a few grey levels)
     render: str = "remap"
+    #: the camera's rolling shutter: readout time first row to last (s); 0 = global shutter.
+    #: Row bands of the colour and depth images are rendered at the path's pose of their
+    #: instant (both sensors scanning in step, as a Kinect's)
+    rolling_shutter_s: float = 0.0
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.rolling_shutter_s < 1.0:
+            raise ValueError(f"rolling_shutter_s must be in [0, 1) s, got "
+                             f"{self.rolling_shutter_s}")
         if self.lighting not in LIGHTINGS:
             raise ValueError(f"lighting {self.lighting!r} is not one of {', '.join(LIGHTINGS)}")
         if self.views not in (1, 2):
@@ -293,12 +305,34 @@ class Studio:
             self._zoom_renderers[enc.zoom_raw] = cached
         return cached[0], cached[1], (enc,)
 
+    def _rolling_shutter(self, renderer: Renderer, t_s: float, prims: Prims | None,
+                         colour: NDArray[np.uint8], depth: NDArray[np.float32]
+                         ) -> tuple[NDArray[np.uint8], NDArray[np.float32]]:
+        """Colour and depth of a rolling-shutter RGB-D camera whose two sensors scan in step
+        (as a Kinect's): each band of :data:`RS_BANDS` rows rendered at the path's pose at
+        the band's mid-row instant, ``(row - (H - 1) / 2) / H * readout`` after the frame's
+        (the people stand still over the readout; labels stay the frame instant's)."""
+        h = colour.shape[0]
+        out_c = np.array(colour, copy=True)
+        out_d = np.array(depth, copy=True)
+        readout = self.config.rolling_shutter_s
+        edges = np.linspace(0, h, RS_BANDS + 1).round().astype(int)
+        for r0, r1 in itertools.pairwise(edges):
+            if r1 <= r0:
+                continue
+            tau = (0.5 * (r0 + r1 - 1) - 0.5 * (h - 1)) / h * readout
+            band = renderer.render(self.config.path.T_world_cam(t_s + tau), prims)
+            out_c[r0:r1] = band.color_bgr[r0:r1]
+            out_d[r0:r1] = band.depth_m[r0:r1]
+        return out_c, out_d
+
     def frame(self, index: int, T_world_cam: F64 | None = None) -> Frame:
         """Frame ``index``; ``T_world_cam`` overrides the path's pose (closed-loop cameras,
         e.g. a simulated pan-tilt head driven by a tracker) - the presenter, ball and noise
         still follow the index."""
         cfg = self.config
         t_s = index / cfg.fps
+        moving = T_world_cam is None  # on its path (an override is one instant's pose)
         if T_world_cam is None:
             T_world_cam = self.T_world_cam(index)
         else:
@@ -329,6 +363,10 @@ class Studio:
         cam, renderer, lens_payloads = self.lens_at(index)
         out = renderer.render(T_world_cam, prims)
         color, depth, labels = out.color_bgr, out.depth_m, out.labels
+        if cfg.rolling_shutter_s > 0.0 and moving:
+            color, depth = self._rolling_shutter(renderer, t_s, prims, color, depth)
+        if cfg.rolling_shutter_s > 0.0:
+            cam = dataclasses.replace(cam, rolling_shutter_s=cfg.rolling_shutter_s)
         # exposure and white balance of the lighting variant (before the sensor noise)
         light = LIGHTINGS[cfg.lighting]
         if not light.is_identity:

@@ -167,9 +167,20 @@ def test_camera_json_round_trip(cam: Intrinsics) -> None:
 
 
 def test_shared_fr1_camera_json_is_the_tum_default() -> None:
+    """The shared camera.json is TUM's fr1 calibration; it says nothing of the shutter, which
+    the TUM source takes from the default (the Kinect v1's readout)."""
+    import dataclasses
+
+    from engine.sources import open_source
     from tests.conftest import shared_path
 
-    assert c.load_camera_json(shared_path("tum_fr1_xyz_37", "camera.json")) == FR1
+    got = c.load_camera_json(shared_path("tum_fr1_xyz_37", "camera.json"))
+    assert got.rolling_shutter_s == 0.0
+    assert dataclasses.replace(got, rolling_shutter_s=FR1.rolling_shutter_s) == FR1
+    assert FR1.rolling_shutter_s == c.KINECT_V1_READOUT_S
+    with open_source(str(shared_path("tum_fr1_xyz_37"))) as src:
+        frame = next(iter(src.frames()))
+    assert frame.intrinsics == FR1
 
 
 def test_camera_json_optional_keys_default(tmp_path: Path) -> None:
