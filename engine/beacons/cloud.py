@@ -33,7 +33,11 @@ def liu_west_roughen(x: F64, weights: F64, h: float, rng: np.random.Generator) -
     """
     mean, cov = weighted_mean_cov(x, weights)  # (k, 2), (k, 2, 2)
     a = math.sqrt(1.0 - h * h)
-    L = np.linalg.cholesky(cov + 1e-12 * np.eye(2))
+    L = np.linalg.cholesky(cov + 1e-12 * np.eye(2))  # lower triangular (k, 2, 2)
     z = rng.standard_normal(x.shape)
-    noise: F64 = np.einsum("kij,mkj->mki", L, z)
+    # L z per particle and beacon, written out (2 x 2): an einsum over these small axes
+    # cost more than the rest of the move
+    noise = np.empty_like(z)
+    noise[..., 0] = L[None, :, 0, 0] * z[..., 0]
+    noise[..., 1] = L[None, :, 1, 0] * z[..., 0] + L[None, :, 1, 1] * z[..., 1]
     return a * x + (1.0 - a) * mean[None] + h * noise
