@@ -81,17 +81,22 @@ def kernel_range_sigma(cam_xy: F64, beacons_xy: F64, beacons_cov: F64,
     return out
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _line_of_sight(cam: F64, f: F64, m: int, k: int) -> tuple[float, float, float]:
+    """Range and unit vector from particle ``m``'s camera to its beacon ``k``."""
+    dx = f[m, k, 0] - cam[m, 0]
+    dy = f[m, k, 1] - cam[m, 1]
+    r = math.hypot(dx, dy)
+    rr = max(r, 1e-9)
+    return r, dx / rr, dy / rr
+
+
 @njit(cache=True, nogil=True)
 def _kalman_update(cam: F64, f: F64, cov: F64, measured: F64, sigma: float) -> None:
     var_r = sigma * sigma
     for m in range(f.shape[0]):
         for k in range(f.shape[1]):
-            dx = f[m, k, 0] - cam[m, 0]
-            dy = f[m, k, 1] - cam[m, 1]
-            r = math.hypot(dx, dy)
-            rr = max(r, 1e-9)
-            ux = dx / rr
-            uy = dy / rr
+            r, ux, uy = _line_of_sight(cam, f, m, k)
             a = cov[m, k, 0, 0]
             b = 0.5 * (cov[m, k, 0, 1] + cov[m, k, 1, 0])
             c = cov[m, k, 1, 1]
@@ -115,11 +120,7 @@ def _kernel_sigma(cam: F64, f: F64, cov: F64, sigma: float, out: F64) -> None:
     var_r = sigma * sigma
     for m in range(f.shape[0]):
         for k in range(f.shape[1]):
-            dx = f[m, k, 0] - cam[m, 0]
-            dy = f[m, k, 1] - cam[m, 1]
-            rr = max(math.hypot(dx, dy), 1e-9)
-            ux = dx / rr
-            uy = dy / rr
+            _, ux, uy = _line_of_sight(cam, f, m, k)
             v = (ux * ux * cov[m, k, 0, 0] + ux * uy * (cov[m, k, 0, 1] + cov[m, k, 1, 0])
                  + uy * uy * cov[m, k, 1, 1])
             out[m, k] = math.sqrt(var_r + max(v, 0.0))

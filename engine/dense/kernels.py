@@ -251,6 +251,17 @@ def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
 # ---------------------------------------------------------------------- per-iteration passes
 
 
+@njit(cache=True, fastmath=True, inline="always", nogil=True)
+def _to_pixel(xn: float, yn: float, cam: np.ndarray, dist: np.ndarray) -> tuple[float, float]:
+    """Normalised coordinates -> distorted full-resolution pixel, eq. (2)-(4)."""
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    r2 = xn * xn + yn * yn
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
+    yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
+    return cam[0] * xd + cam[2], cam[1] * yd + cam[3]
+
+
 @njit(cache=True, fastmath=True, nogil=True)
 def project(
     P: np.ndarray, T: np.ndarray, cam: np.ndarray, dist: np.ndarray,
@@ -259,8 +270,6 @@ def project(
     """Warp of eq. (2)-(4) for points ``lo:hi``: full-resolution pixels ``(u0, v0)`` and the
     depth ``Z`` in the current camera (a vectorised loop; Z <= 0 is caught by the sampler).
     Whole arrays and an index range rather than slices keep numba's contiguous layout."""
-    fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
-    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
     r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
     r10, r11, r12, t1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
     r20, r21, r22, t2 = T[2, 0], T[2, 1], T[2, 2], T[2, 3]
@@ -275,14 +284,7 @@ def project(
         Y = r10 * px + r11 * py + r12 * pz + t1
         Zi = r20 * px + r21 * py + r22 * pz + t2
         iz = 1.0 / max(Zi, 1e-3)
-        xn = X * iz
-        yn = Y * iz
-        r2 = xn * xn + yn * yn
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
-        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
-        u0[i] = fx * xd + cx
-        v0[i] = fy * yd + cy
+        u0[i], v0[i] = _to_pixel(X * iz, Y * iz, cam, dist)
         Z[i] = Zi
 
 
@@ -297,8 +299,6 @@ def project_rs(
     point ``X`` of the frame-instant camera is seen at ``X - tau (v + w x X)`` (first order;
     ``tau`` from the row of its global-shutter projection). ``rs = (t_row, row0, vx, vy, vz,
     wx, wy, wz)``."""
-    fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
-    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
     r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
     r10, r11, r12, t1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
     r20, r21, r22, t2 = T[2, 0], T[2, 1], T[2, 2], T[2, 3]
@@ -315,24 +315,13 @@ def project_rs(
         Y = r10 * px + r11 * py + r12 * pz + t1
         Zi = r20 * px + r21 * py + r22 * pz + t2
         iz = 1.0 / max(Zi, 1e-3)
-        xn = X * iz
-        yn = Y * iz
-        r2 = xn * xn + yn * yn
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
-        tau = (fy * yd + cy - row0) * t_row
+        _, v_gs = _to_pixel(X * iz, Y * iz, cam, dist)  # the row at the frame's instant
+        tau = (v_gs - row0) * t_row
         Xr = X - tau * (vx + wy * Zi - wz * Y)
         Yr = Y - tau * (vy + wz * X - wx * Zi)
         Zr = Zi - tau * (vz + wx * Y - wy * X)
         iz = 1.0 / max(Zr, 1e-3)
-        xn = Xr * iz
-        yn = Yr * iz
-        r2 = xn * xn + yn * yn
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn)
-        yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn
-        u0[i] = fx * xd + cx
-        v0[i] = fy * yd + cy
+        u0[i], v0[i] = _to_pixel(Xr * iz, Yr * iz, cam, dist)
         Z[i] = Zr
 
 

@@ -7,14 +7,11 @@ ERROR and STOPPED, at 1280x800 and 1920x1080 (offscreen).
 from __future__ import annotations
 
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/studiotrack_onair_shots")
-SIZES = ((1280, 800), (1920, 1080))
 STUDIO = "synthetic:frames=100000,width=320,height=240,presenter=0,path=rail"
 COVERED = STUDIO + ",cover_start=40,cover_frames=100000"
 
@@ -36,12 +33,9 @@ class _FailsAt:
 
 
 def main() -> None:
-    from PySide6.QtCore import QEventLoop, QSettings, QTimer
+    from screenshot_kit import open_window, pump, shoot, wait
 
     import app.run_owner as run_owner
-    from app.context import AppContext
-    from app.main import create_application
-    from app.main_window import MainWindow
     from app.run_owner import RunRequest
     from engine.outputs.sender import OutputConfig, TargetSpec
     from engine.pipeline import RunPhase
@@ -49,31 +43,11 @@ def main() -> None:
     from engine.sources import open_source
     from engine.trackers import create_tracker
 
-    create_application()
-    tmp = tempfile.mkdtemp(prefix="studiotrack_shots_")
-    ctx = AppContext(settings=QSettings(f"{tmp}/s.ini", QSettings.Format.IniFormat))
-    win = MainWindow(ctx, restore_geometry=False)
-    win.show()
+    ctx, win = open_window()
     OUT.mkdir(parents=True, exist_ok=True)
 
-    def pump(seconds: float) -> None:
-        loop = QEventLoop()
-        QTimer.singleShot(round(seconds * 1000), loop.quit)
-        loop.exec()
-
-    def wait(cond, timeout: float = 90.0) -> None:  # type: ignore[no-untyped-def]
-        t = time.monotonic()
-        while not cond() and time.monotonic() - t < timeout:
-            pump(0.1)
-
-    def shoot(page: str, state: str) -> None:
-        for w, h in SIZES:
-            win.resize(w, h)
-            win.show_page(page)
-            pump(0.4)
-            win.display_tick(force_header=True)
-            pump(0.2)
-            win.grab().save(str(OUT / f"{page.lower()}_{state}_{w}x{h}.png"))
+    def shot(page: str, state: str) -> None:
+        shoot(win, OUT, f"{page.lower()}_{state}", page)
 
     live = win.page("Live")
     ptz = win.page("PTZ")
@@ -111,13 +85,13 @@ def main() -> None:
     # TRACKING (each page with its own tracker where it has one)
     for page in pages:
         start_for(page)
-        shoot(page, "tracking")
+        shot(page, "tracking")
     # LOST (lens covered: dense on the Live run, the presenter on its page)
     for page in pages:
         start_for(page if page in ("Presenter",) else "Live", covered=True)
         wait(lambda: win.header.state.state == "LOST" or
              (win.display_tick(force_header=True) or False), timeout=30)
-        shoot(page, "lost")
+        shot(page, "lost")
     # output failure: the route to a target goes away (a loopback-bound socket cannot send
     # to a network address; the check at Apply is bypassed as if the route vanished after)
     real_check = run_owner.check_targets
@@ -129,7 +103,7 @@ def main() -> None:
     for page in pages:
         start_for(page)
         pump(1.5)
-        shoot(page, "output_failure")
+        shot(page, "output_failure")
     # ERROR: the engine raises mid-show (outputs on: they hold the last pose flagged LOST)
     ctx.run.stop()
     ctx.run.apply_outputs(OutputConfig(targets=(
@@ -139,13 +113,13 @@ def main() -> None:
                              tracker_factory=lambda: _FailsAt(create_tracker("dense"), 30)))
     wait(lambda: ctx.run.pipeline is not None and ctx.run.pipeline.phase is RunPhase.FAULT)
     for page in pages:
-        shoot(page, "error")
+        shot(page, "error")
     ctx.run.set_outputs_enabled(False)
     run_owner.check_targets = real_check  # type: ignore[assignment]
     # STOPPED
     ctx.run.stop()
     for page in pages:
-        shoot(page, "stopped")
+        shot(page, "stopped")
     win.close()
     print(f"screenshots in {OUT}")
 

@@ -14,12 +14,9 @@ at 1280x800 and 1920x1080:
 from __future__ import annotations
 
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/studiotrack_presenter_shots")
-SIZES = ((1280, 800), (1920, 1080))
 TWO_VIEWS = "synthetic:frames=100000,presenter=1,path=static,views=2,seed=3"
 # the bench's desk scenario (engine.bench.presenter_scenarios.DESK['report']), the walk out
 # later (the start-up of a run in a fresh process is over by then)
@@ -28,44 +25,19 @@ DESK = ("synthetic:frames=100000,presenter=1,path=static,seed=3,presenter_mode=l
 
 
 def main() -> None:
-    from PySide6.QtCore import QEventLoop, QSettings, QTimer
+    from screenshot_kit import open_window, shoot, wait
 
-    from app.context import AppContext
-    from app.main import create_application
-    from app.main_window import MainWindow
     from engine.presenter.model import auto_patches
     from engine.sources import open_source
     from engine.trackers.base import TrackState
 
-    create_application()
-    tmp = tempfile.mkdtemp(prefix="studiotrack_shots_")
-    ctx = AppContext(settings=QSettings(f"{tmp}/s.ini", QSettings.Format.IniFormat))
-    win = MainWindow(ctx, restore_geometry=False)
-    win.show()
+    ctx, win = open_window()
     win.show_page("Presenter")
     page = win.page("Presenter")
     OUT.mkdir(parents=True, exist_ok=True)
 
-    def pump(seconds: float) -> None:
-        loop = QEventLoop()
-        QTimer.singleShot(round(seconds * 1000), loop.quit)
-        loop.exec()
-
-    def wait(cond, timeout: float = 90.0) -> bool:  # type: ignore[no-untyped-def]
-        t = time.monotonic()
-        while time.monotonic() - t < timeout:
-            if cond():
-                return True
-            pump(0.05)
-        return False
-
-    def shoot(name: str) -> None:
-        for w, h in SIZES:
-            win.resize(w, h)
-            pump(0.4)
-            win.display_tick(force_header=True)
-            pump(0.2)
-            win.grab().save(str(OUT / f"presenter_{name}_{w}x{h}.png"))
+    def shot(name: str) -> None:
+        shoot(win, OUT, f"presenter_{name}")
 
     def start(spec: str) -> None:
         if ctx.run.is_running:
@@ -92,18 +64,19 @@ def main() -> None:
         return None if rec is None else rec.result.state
 
     start(TWO_VIEWS)
-    wait(lambda: frame_index() > 90)
-    shoot("two_views_tracking")
+    wait(lambda: frame_index() > 90, step=0.05)
+    shot("two_views_tracking")
 
     start(DESK)
     # the presenter has left (from frame ~310) and the tracker said LOST
-    wait(lambda: frame_index() > 320 and state() == TrackState.LOST, timeout=120)
-    shoot("desk_lost")
-    wait(lambda: frame_index() > 420 and state() == TrackState.TRACKING, timeout=120)
-    shoot("desk_reacquired")
+    wait(lambda: frame_index() > 320 and state() == TrackState.LOST, timeout=120, step=0.05)
+    shot("desk_lost")
+    wait(lambda: frame_index() > 420 and state() == TrackState.TRACKING, timeout=120,
+         step=0.05)
+    shot("desk_reacquired")
     ctx.run.stop()
     wait(lambda: not ctx.run.is_running)
-    shoot("stopped")
+    shot("stopped")
     win.close()
     print(f"screenshots in {OUT}")
 
