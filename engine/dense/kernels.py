@@ -252,6 +252,24 @@ def _cholesky_solve6(H: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, bool]:
 
 
 @njit(cache=True, fastmath=True, inline="always", nogil=True)
+def _rows(T: np.ndarray) -> tuple[float, ...]:
+    """The top three rows of the rigid transform ``T`` as 12 scalars (r00, r01, r02, t0,
+    r10, ...): held in registers across a loop over points (:func:`_moved`)."""
+    return (T[0, 0], T[0, 1], T[0, 2], T[0, 3], T[1, 0], T[1, 1], T[1, 2], T[1, 3],
+            T[2, 0], T[2, 1], T[2, 2], T[2, 3])
+
+
+@njit(cache=True, fastmath=True, inline="always", nogil=True)
+def _moved(R: tuple[float, ...], P: np.ndarray, i: int) -> tuple[float, float, float]:
+    """Point ``i`` of ``P`` ((3, n), float32 or float64) moved by the transform of
+    :func:`_rows`, in float64: ``T P`` of eq. (2)."""
+    x, y, z = np.float64(P[0, i]), np.float64(P[1, i]), np.float64(P[2, i])
+    return (R[0] * x + R[1] * y + R[2] * z + R[3],
+            R[4] * x + R[5] * y + R[6] * z + R[7],
+            R[8] * x + R[9] * y + R[10] * z + R[11])
+
+
+@njit(cache=True, fastmath=True, inline="always", nogil=True)
 def _to_pixel(xn: float, yn: float, cam: np.ndarray, dist: np.ndarray) -> tuple[float, float]:
     """Normalised coordinates -> distorted full-resolution pixel, eq. (2)-(4)."""
     k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
@@ -270,19 +288,9 @@ def project(
     """Warp of eq. (2)-(4) for points ``lo:hi``: full-resolution pixels ``(u0, v0)`` and the
     depth ``Z`` in the current camera (a vectorised loop; Z <= 0 is caught by the sampler).
     Whole arrays and an index range rather than slices keep numba's contiguous layout."""
-    r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
-    r10, r11, r12, t1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
-    r20, r21, r22, t2 = T[2, 0], T[2, 1], T[2, 2], T[2, 3]
-    Px = P[0]
-    Py = P[1]
-    Pz = P[2]
+    R = _rows(T)
     for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
-        px = np.float64(Px[i])
-        py = np.float64(Py[i])
-        pz = np.float64(Pz[i])
-        X = r00 * px + r01 * py + r02 * pz + t0
-        Y = r10 * px + r11 * py + r12 * pz + t1
-        Zi = r20 * px + r21 * py + r22 * pz + t2
+        X, Y, Zi = _moved(R, P, i)
         iz = 1.0 / max(Zi, 1e-3)
         u0[i], v0[i] = _to_pixel(X * iz, Y * iz, cam, dist)
         Z[i] = Zi
@@ -299,21 +307,11 @@ def project_rs(
     point ``X`` of the frame-instant camera is seen at ``X - tau (v + w x X)`` (first order;
     ``tau`` from the row of its global-shutter projection). ``rs = (t_row, row0, vx, vy, vz,
     wx, wy, wz)``."""
-    r00, r01, r02, t0 = T[0, 0], T[0, 1], T[0, 2], T[0, 3]
-    r10, r11, r12, t1 = T[1, 0], T[1, 1], T[1, 2], T[1, 3]
-    r20, r21, r22, t2 = T[2, 0], T[2, 1], T[2, 2], T[2, 3]
+    R = _rows(T)
     t_row, row0 = rs[0], rs[1]
     vx, vy, vz, wx, wy, wz = rs[2], rs[3], rs[4], rs[5], rs[6], rs[7]
-    Px = P[0]
-    Py = P[1]
-    Pz = P[2]
     for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: see the module doc
-        px = np.float64(Px[i])
-        py = np.float64(Py[i])
-        pz = np.float64(Pz[i])
-        X = r00 * px + r01 * py + r02 * pz + t0
-        Y = r10 * px + r11 * py + r12 * pz + t1
-        Zi = r20 * px + r21 * py + r22 * pz + t2
+        X, Y, Zi = _moved(R, P, i)
         iz = 1.0 / max(Zi, 1e-3)
         _, v_gs = _to_pixel(X * iz, Y * iz, cam, dist)  # the row at the frame's instant
         tau = (v_gs - row0) * t_row
