@@ -27,7 +27,8 @@ Side by side in one process, on the same preloaded frames (decoding is not timed
   the studio's truth (static camera, rail camera, and ``zoom``: the second camera zooming with
   a lens-model floor calibration, the fixed homography's errors beside it as
   ``homography_only``), and the frames LOST while the presenter is in both views (a loss in
-  either view is a loss);
+  either view is a loss), split into those with the presenter's box wholly inside the frontal
+  image and those with it cut by the border (``false_lost_frames_inside``/``_at_edge``);
 - robot: the closed loop with the virtual robot camera (framing error in the TV picture, jerk,
   the arm's per-axis speed and acceleration against its limits);
 - jitter: presenter standing still: std of the jitter-filtered output (px), with the raw

@@ -315,7 +315,10 @@ def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, An
     d alone hides errors along the circle around the robot (a presenter walking across the
     set keeps d nearly constant), so the floor position error is reported beside it.
     ``false_lost_frames``: LOST while the presenter is in view of both cameras (the paper's
-    rule: a loss in either view is a loss), with the frames each view said LOST.
+    rule: a loss in either view is a loss), with the frames each view said LOST; of those,
+    ``false_lost_frames_inside`` had the presenter's box wholly inside the frontal image and
+    ``false_lost_frames_at_edge`` had it cut by the image border (the presenter partly out of
+    the frame).
     """
     from engine.floor import OverheadView
     from engine.trackers.base import TrackState
@@ -325,7 +328,7 @@ def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, An
     results = run(frames)
     errs, d_true, floor_errs, both = [], [], [], 0
     fixed_d, fixed_floor = [], []  # lens-model calibrations: the marks as a fixed homography
-    false_lost = lost_front = lost_over = 0
+    false_lost = lost_front = lost_over = lost_edge = 0
     for f, r in zip(frames, results, strict=True):
         over = f.payload(OverheadView)
         det = r.details
@@ -334,6 +337,10 @@ def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, An
         in_view = f.gt_box_xywh is not None and over is not None and over.box_xywh is not None
         if det is not None and in_view:
             false_lost += int(r.state == TrackState.LOST)
+            if r.state == TrackState.LOST and f.gt_box_xywh is not None:
+                bx, _, bw, _ = f.gt_box_xywh
+                width = f.color_bgr.shape[1] if f.color_bgr is not None else None
+                lost_edge += int(bx <= 1.0 or (width is not None and bx + bw >= width - 1.0))
             lost_front += int(getattr(det, "frontal_state", "TRACKING") != "TRACKING")
             # None: the second view's filter has not started (its box still on the border)
             lost_over += int(getattr(det, "overhead_state", None) not in (None, "TRACKING"))
@@ -354,6 +361,8 @@ def two_view(run: Runner, variant: str = "report", n: int = 300) -> dict[str, An
     out: dict[str, Any] = {"source": spec, "frames": len(frames), "frames_with_d": len(errs),
                            "frames_tracking_both_views": both,
                            "false_lost_frames": false_lost,
+                           "false_lost_frames_inside": false_lost - lost_edge,
+                           "false_lost_frames_at_edge": lost_edge,
                            "frontal_lost_frames": lost_front,
                            "overhead_lost_frames": lost_over}
     if errs:

@@ -149,3 +149,30 @@ def test_exposure_normalisation_holds_a_walk_while_the_lights_come_up(
 
     assert sc.walk_false_lost(runner(False), "ramp_dev")["false_lost_frames"] > 30
     assert sc.walk_false_lost(runner(True), "ramp_dev")["false_lost_frames"] == 0
+
+
+def test_two_view_tells_losses_at_the_image_edge_from_losses_inside(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every frame said LOST: those with the presenter's box on the frontal image's border
+    are counted apart from those with the box wholly inside."""
+    import dataclasses
+
+    from engine.trackers.base import TrackState
+
+    # the presenter walks from the middle of a 160-px-wide frame out past its left border
+    monkeypatch.setitem(sc.TWO_VIEW, "edge", TINY + "views=2,presenter_mode=leave,"
+                        "presenter_x=0.0,presenter_out=-2.4,presenter_leave=0,"
+                        "presenter_return=1000")
+
+    def always_lost(frames: list[Frame]) -> list[Any]:
+        return [dataclasses.replace(r, state=TrackState.LOST) for r in _run(frames)]
+
+    tv = sc.two_view(always_lost, "edge", n=40)
+    frames = sc.frames_of(sc.TWO_VIEW["edge"].format(n=40))
+    boxes = [f.gt_box_xywh for f in frames if f.gt_box_xywh is not None]
+    edge = [b for b in boxes if b[0] <= 1.0 or b[0] + b[2] >= 159.0]
+    assert 0 < len(edge) < len(boxes)  # the walk both starts inside and reaches the edge
+    assert tv["false_lost_frames_at_edge"] > 0
+    assert tv["false_lost_frames_inside"] > 0
+    assert tv["false_lost_frames_inside"] + tv["false_lost_frames_at_edge"] == \
+        tv["false_lost_frames"]
