@@ -24,7 +24,9 @@ compare within one run):
 - **memory**: peak RSS of a child process tracking with the sweep's store (at least 30
   keyframes; ``peak_rss_mb``), and against the keyframe count (``rss_mb_by_keyframes``: 10,
   30, 100, 200 keyframes thinned from a dense sweep). The tracker loads a store lazily and
-  keeps per keyframe only its precomputed reference (every one built at start-up).
+  keeps per keyframe only its precomputed reference, at most ``max_resident_references``
+  (64) of a loaded store's (:mod:`engine.dense.reference_cache`); the child builds every
+  keyframe's, as a pass over the whole studio would.
 
 - **paper** (:mod:`engine.bench.dense_paper`): ``preset=paper`` beside the default in every
   part: the rail's ``rail.rows`` (``default_*`` / ``paper_*``, keyframe and incremental, and
@@ -391,7 +393,8 @@ n = len(tr.store)
 for i in range(int(sys.argv[4])):
     a = np.load(folder / f"f{i:04d}.npz")
     tr.track(Frame(i, i / 30.0, a["color"], intr, a["depth"], a["gt"]))
-# every keyframe's reference resident, as after a full pass over the rail
+# every keyframe's reference built, as after a full pass over the studio (at most
+# max_resident_references of them stay resident)
 for kf in tr.store.keyframes:
     tr._reference(kf)
 print(json.dumps({"peak_rss_mb": rss(), "after_imports_mb": base, "keyframes": n}))

@@ -147,6 +147,11 @@ class DenseParams(Params):
                                               help="incremental: new reference when inliers "
                                               "fall below")
     keyframes_dir: str = param("", help="keyframe store folder (dense); empty: build online")
+    max_resident_references: int = param(
+        64, lo=1, hi=100000,
+        help="keyframe references held in memory, about 1.2 MB each: a stored keyframe's that "
+        "was used least recently is dropped and rebuilt from the store (about 20 ms) when the "
+        "camera comes back; online keyframes are always held")
     theta_max_deg: float = param(30.0, lo=1.0, hi=180.0,
                                  help="keyframe pre-selection angle, eq. (20)")
     d_max_m: float = param(1.0, lo=0.05, hi=20.0, help="keyframe pre-selection distance, eq. (20)")

@@ -56,6 +56,7 @@ from engine.dense import photometric as ph
 from engine.dense.details import DenseDetails
 from engine.dense.params import DenseParams
 from engine.dense.pyramid import gray_u8
+from engine.dense.reference_cache import ReferenceCache
 from engine.errors import TrackerError
 from engine.frames import Frame
 from engine.geometry import invert, rotation_angle_rad, se3_exp, se3_log
@@ -494,7 +495,7 @@ class DenseKeyframeTracker(_DenseBase):
         self._store: KeyframeStore | None = self._given_store
         self._store_dir = ""
         self._online = self._given_store is None or self._extend_store
-        self._refs: dict[int, ph.Reference] = {}
+        self._refs = ReferenceCache(self._params.max_resident_references)
         self._kf_id: int | None = None
         # a keyframe decided on but not built yet: (frame, its pre-processing, pose)
         self._pending_kf: tuple[Frame, ph.Preprocessed, F64] | None = None
@@ -521,7 +522,7 @@ class DenseKeyframeTracker(_DenseBase):
         if self._unmoved and self._velocity is not None:
             # the velocity at the next good frame stands for the keyframe's own
             for kf_id, (frame, pre) in list(self._unmoved.items()):
-                self._refs[kf_id] = self._build_reference(pre, frame)
+                self._refs.keep(kf_id, self._build_reference(pre, frame))
                 if self._store is not None:
                     self._store.set_twist(kf_id, self._velocity)
             self._unmoved.clear()
@@ -531,7 +532,7 @@ class DenseKeyframeTracker(_DenseBase):
         self._store = KeyframeStore.load(Path(folder), lazy=True)
         self._store_dir = folder
         self._online = self._extend_store
-        self._refs = {}
+        self._refs.clear()
 
     def _reference(self, kf: Keyframe) -> ph.Reference:
         ref = self._refs.get(kf.id)
@@ -539,7 +540,7 @@ class DenseKeyframeTracker(_DenseBase):
             assert self._store is not None
             pre = ph.preprocess(kf.gray, kf.depth_m, self._store.intrinsics)
             ref = self._build_reference(pre, twist_per_s=kf.twist_per_s)
-            self._refs[kf.id] = ref
+            self._refs.keep_rebuildable(kf.id, ref)
         return ref
 
     def track(self, frame: Frame) -> TrackResult:
@@ -550,7 +551,8 @@ class DenseKeyframeTracker(_DenseBase):
         self.after_frame()
         select_ms = (time.perf_counter() - t_start) * 1e3
         if self._apply_pending():
-            self._refs = {}
+            self._refs.clear()
+        self._refs.capacity = self._params.max_resident_references
         p = self._params
         if p.keyframes_dir and p.keyframes_dir != self._store_dir and self._given_store is None:
             self._load_store(p.keyframes_dir)
@@ -654,7 +656,7 @@ class DenseKeyframeTracker(_DenseBase):
         gray = np.array(gray_u8(frame.color_bgr), dtype=np.uint8)
         kf = self._store.add(T_world_cam, gray, np.array(frame.depth_m, dtype=np.float32),
                              twist_per_s=self._velocity)
-        self._refs[kf.id] = self._build_reference(pre, frame)
+        self._refs.keep(kf.id, self._build_reference(pre, frame))
         if self._needs_motion(frame):
             self._unmoved[kf.id] = (frame, pre)
         self._kf_id = kf.id

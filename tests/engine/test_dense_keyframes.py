@@ -312,3 +312,71 @@ def test_a_new_keyframe_is_built_after_its_frame_and_tracking_is_unchanged() -> 
     assert piped.store is not None
     assert direct.store is not None
     assert len(piped.store) == len(direct.store)
+
+
+def test_references_beyond_the_bound_are_dropped_and_rebuilt_the_same(tmp_path: Path) -> None:
+    """max_resident_references bounds a loaded store's references (least recently used
+    dropped); a dropped one is rebuilt from the store when the camera comes back, and the
+    poses are bit for bit those of a tracker holding every reference."""
+    intr = small_intrinsics(distorted=True)
+    scene = PlaneScene(intr, room_scale=0.45)
+    st = KeyframeStore(intr)
+    for k in range(5):
+        T = se3_exp(np.array([0.03 * k, 0.0, 0.0, 0.0, 0.0, 0.0]))
+        gray, depth = scene.render(T)
+        st.add(T, gray, depth)
+    st.save(tmp_path / "kf")
+    xs = np.concatenate([np.linspace(0.0, 0.12, 13), np.linspace(0.12, 0.0, 13)[1:]])
+    frames = [scene.frame(i, se3_exp(np.array([x, 0.0, 0.0, 0.0, 0.0, 0.0])))
+              for i, x in enumerate(xs)]
+
+    def run(bound: int) -> tuple[list[np.ndarray], list[int], set[int]]:
+        tr = create_tracker("dense", keyframes_dir=str(tmp_path / "kf"), n_points=1024,
+                            max_resident_references=bound)
+        poses, resident, used = [], [], set()
+        for f in frames:
+            r = tr.track(f)
+            assert r.state.is_good
+            assert r.T_world_cam is not None
+            poses.append(r.T_world_cam)
+            resident.append(len(tr._refs))
+            used.add(r.keyframe_id)
+        return poses, resident, used
+
+    bounded, resident, used = run(2)
+    full, resident_full, _ = run(100)
+    assert len(used) >= 4  # the sweep there and back uses most keyframes
+    assert max(resident) == 2  # never more than the bound
+    assert max(resident_full) == 5
+    for a, b in zip(bounded, full, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_reference_cache_keeps_online_references_and_drops_the_least_recent() -> None:
+    from engine.dense.photometric import Reference
+    from engine.dense.reference_cache import ReferenceCache
+
+    def ref() -> Reference:
+        z = np.zeros((3, 4), np.float32)
+        return Reference(z, z, np.zeros((3, 6, 4), np.float32), np.zeros((4, 2), np.float32),
+                         small_intrinsics(), 4)
+
+    c = ReferenceCache(2)
+    a, b, d, e = ref(), ref(), ref(), ref()
+    c.keep(0, a)  # online: never dropped
+    c.keep_rebuildable(1, b)
+    c.keep_rebuildable(2, d)
+    assert c.get(1) is b  # 1 now the most recent
+    c.keep_rebuildable(3, e)  # drops 2, the least recently used
+    assert c.get(2) is None
+    assert c.get(0) is a
+    assert c.get(1) is b
+    assert c.get(3) is e  # now the most recent, 1 the least
+    assert len(c) == 3
+    c.capacity = 1
+    assert c.get(1) is None
+    assert c.get(3) is e
+    assert c.get(0) is a
+    assert c.nbytes == 2 * a.nbytes
+    c.clear()
+    assert len(c) == 0
