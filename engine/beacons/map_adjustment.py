@@ -44,8 +44,6 @@ def annealed_gain(p: float, n_reads: F64) -> F64:
     return np.maximum(p, 1.0 / (n_reads + 1.0))
 
 
-
-
 def kalman_map_adjustment(
     cam_xy: F64, beacons_xy: F64, beacons_cov: F64, measured_m: F64, range_sigma_m: float,
 ) -> tuple[F64, F64]:

@@ -193,13 +193,18 @@ def _at_frame_instant(P: F64, rows: NDArray[np.int64], rs: F64) -> F64:
                       dtype=np.float64)
 
 
+def rs_rows(intr: Intrinsics, readout_s: float) -> tuple[float, float]:
+    """``(t_row, row0)`` of a rolling-shutter frame read out in ``readout_s``: seconds per
+    full-resolution row, and the row exposed at the frame's instant (the middle one)."""
+    return readout_s / max(intr.height, 1), 0.5 * (intr.height - 1)
+
+
 def _rs_config(intr: Intrinsics, readout_s: float, dt_s: float) -> F64:
-    """``(t_row, row0, dt)`` for :func:`engine.dense.kernels.minimize`: seconds per
-    full-resolution row, the row exposed at the frame's instant (the middle one), and the time
-    since the previous frame (0: no rolling-shutter model)."""
+    """``(t_row, row0, dt)`` for :func:`engine.dense.kernels.minimize` (:func:`rs_rows` and
+    the time since the previous frame; zeros: no rolling-shutter model)."""
     on = readout_s > 0.0 and dt_s > 0.0 and math.isfinite(readout_s) and math.isfinite(dt_s)
-    cfg = np.array([readout_s / max(intr.height, 1), 0.5 * (intr.height - 1), dt_s]
-                   if on else [0.0, 0.0, 0.0], dtype=np.float64)
+    cfg = np.array([*rs_rows(intr, readout_s), dt_s] if on else [0.0, 0.0, 0.0],
+                   dtype=np.float64)
     return _ro(cfg, np.float64)
 
 
@@ -328,7 +333,16 @@ def build_reference(
         # r = n . (T^-1 Q - P) and its Jacobian are linear in n, so scaling n by the point's
         # 1 / sigma(z) scales both (the kernels need no other input)
         N = N * geometric_noise_weights(Pg[:, 2])[:, None]
+    # the reference frame's rolling-shutter motion, where there is one
+    rs_moving = rs_ref if rs_ref is not None and rs_ref[0] > 0.0 else None
     if Pg is not None and N is not None:
+        if rs_moving is not None:
+            # the depth image's rows too (a depth sensor scanning in step with the colour
+            # one, as a Kinect's; see below for the photometric points); the current depth is
+            # read at the rows the points are seen in (kernels.minimize), so both sides of the
+            # point-to-plane residual are at the frames' instants
+            vg = vf[cg][has_n] if with_normals and geometric_points > 0 else vf[idx]
+            Pg = _at_frame_instant(Pg, vg, rs_moving)
         N32 = np.ascontiguousarray(N.T, dtype=np.float32)
         Pg32 = np.ascontiguousarray(Pg.T, dtype=np.float32)
         # point-to-plane residual r = n . (T^-1 Q - P) (Q: current depth point); the inverse
@@ -345,21 +359,11 @@ def build_reference(
         _ro(pre.levels[2], f32), _ro(cam_vector(intr), f64), _ro(intr.dist, f64),
         _ro(pyr.level_scales(), f64), cstar, J,
     )
-    if rs_ref is not None and rs_ref[0] > 0.0:
+    if rs_moving is not None:
         # seen at X_row = X - tau (v + w x X) (kernels.project_rs): X = X_row + tau (v + w x
         # X_row) to first order, tau from the row the point was seen in
-        P = _at_frame_instant(P, vf[idx], rs_ref)
+        P = _at_frame_instant(P, vf[idx], rs_moving)
         P32 = np.ascontiguousarray(P.T, dtype=np.float32)
-        if Pg32 is not None and Pg is not None and N is not None:
-            # the depth image's rows too (a depth sensor scanning in step with the colour
-            # one, as a Kinect's); the current depth is read at the rows the points are seen
-            # in (kernels.minimize), so both sides of the point-to-plane residual are at the
-            # frames' instants
-            vg = vf[cg][has_n] if with_normals and geometric_points > 0 else vf[idx]
-            Pg = _at_frame_instant(Pg, vg, rs_ref)
-            Pg32 = np.ascontiguousarray(Pg.T, dtype=np.float32)
-            Jg = np.ascontiguousarray(
-                np.concatenate([-N, -np.cross(Pg, N)], axis=1).T, dtype=np.float32)
     uv = np.stack([uf[idx], vf[idx]], axis=1).astype(np.float32)
     zmed = float(np.median(P[:, 2])) if n else 1.0
     # read-only from here on (the kernels then take them without a per-frame view, _ro)

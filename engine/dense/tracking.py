@@ -174,26 +174,28 @@ class _DenseBase:
                 else self._velocity if frame is not None else None),
         )
 
+    def _readout_s(self) -> float:
+        """The camera's rolling-shutter readout time where the model is on, else 0."""
+        intr = self._intr
+        if not self._params.rolling_shutter or intr is None:
+            return 0.0
+        return intr.rolling_shutter_s  # validated >= 0 (engine.camera)
+
     def _needs_motion(self, frame: Frame | None) -> bool:
         """A reference built from ``frame`` now would lack its rolling-shutter motion (the
         camera's velocity is not known yet: the first frame, or the first after a loss)."""
-        p = self._params
-        intr = self._intr
-        return bool(p.rolling_shutter and frame is not None and intr is not None
-                    and intr.rolling_shutter_s > 0.0 and self._velocity is None)
+        return frame is not None and self._readout_s() > 0.0 and self._velocity is None
 
     def _reference_motion(self, twist_per_s: F64 | None) -> F64 | None:
         """The rolling-shutter model's ``rs_ref`` of a reference taken while the camera
         moved with ``twist_per_s`` (body twist per second, (v, w); a new reference: the last
         good step's, a stored keyframe: its own), or None (unknown, or no model)."""
-        p = self._params
-        intr = self._intr
-        if (not p.rolling_shutter or twist_per_s is None or intr is None
-                or intr.rolling_shutter_s <= 0.0):
+        readout = self._readout_s()
+        if twist_per_s is None or readout <= 0.0 or self._intr is None:
             return None
         xi = twist_per_s
-        return np.array([intr.rolling_shutter_s / intr.height, 0.5 * (intr.height - 1),
-                         *xi[:3], *xi[3:]], dtype=np.float64)
+        return np.array([*ph.rs_rows(self._intr, readout), *xi[:3], *xi[3:]],
+                        dtype=np.float64)
 
     def _note_good_pose(
         self, frame: Frame, T_world_cam: F64, res: ph.AlignResult | None = None,
@@ -232,16 +234,15 @@ class _DenseBase:
         """``(readout_s, T_prev_ref, dt_s)`` for :func:`ph.align`: the camera's readout time
         and the previous frame's pose against the reference, if that frame was tracked and
         is recent (no rolling-shutter model otherwise)."""
-        p = self._params
-        intr = self._intr
+        readout = self._readout_s()
         prev = self._last_good_stamped
-        if (not p.rolling_shutter or frame is None or T_world_ref is None or intr is None
-                or intr.rolling_shutter_s <= 0.0 or prev is None or self._lost_frames > 0):
+        if (readout <= 0.0 or frame is None or T_world_ref is None or prev is None
+                or self._lost_frames > 0):
             return 0.0, None, 0.0
         dt = float(frame.timestamp_s) - prev[0]
         if not (0.0 < dt <= RS_MAX_GAP_S):
             return 0.0, None, 0.0
-        return intr.rolling_shutter_s, invert(prev[1]) @ T_world_ref, dt
+        return readout, invert(prev[1]) @ T_world_ref, dt
 
     def _align(
         self, ref: ph.Reference, pre: ph.Preprocessed, T0: F64, frame: Frame | None = None,

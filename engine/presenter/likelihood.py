@@ -103,10 +103,14 @@ def chromatic_fraction(hsv_u8: NDArray[np.uint8], xywh: tuple[int, int, int, int
 MAX_EXPOSURE_GAIN = 4.0
 
 
+def _channel_means(bgr: NDArray[np.uint8], step: int) -> F64:
+    """The frame's B, G, R means over every ``step``-th pixel."""
+    return np.asarray(cv2.mean(np.ascontiguousarray(bgr[::step, ::step]))[:3], dtype=np.float64)
+
+
 def frame_grey_level(bgr: NDArray[np.uint8], step: int = 8) -> float:
     """The frame's mean grey level (mean of the channel means, every ``step``-th pixel)."""
-    m = np.asarray(cv2.mean(np.ascontiguousarray(bgr[::step, ::step]))[:3], dtype=np.float64)
-    return float(m.mean())
+    return float(_channel_means(bgr, step).mean())
 
 
 def grey_world_gains(bgr: NDArray[np.uint8], step: int = 8,
@@ -122,7 +126,7 @@ def grey_world_gains(bgr: NDArray[np.uint8], step: int = 8,
     frame's pixels fall below the hue threshold into the brightness bins, and its grey pixels
     into darker brightness bins, than the reference's.
     """
-    m = np.asarray(cv2.mean(np.ascontiguousarray(bgr[::step, ::step]))[:3], dtype=np.float64)
+    m = _channel_means(bgr, step)
     grey = m.mean()
     if level is not None and math.isfinite(level) and level > 0.0:
         grey = float(np.clip(level, grey / MAX_EXPOSURE_GAIN, grey * MAX_EXPOSURE_GAIN))
